@@ -1,0 +1,77 @@
+//! The bake pipeline without I/O: scene -> faces -> element roots -> visibility -> solve.
+//!
+//! Used by the CLI, the service and the tests so that all three solve exactly the same way.
+//! Checks that the scene has something to solve (an emitter) before any work.
+
+use crate::domain::{build_roots, ElementRoot};
+use crate::faces::{build_faces, FaceSet};
+use crate::scene::{Scene, SceneError};
+use crate::solver::{solve, visibility::Visibility, Progress, Solution, SolverParams};
+use std::sync::atomic::AtomicBool;
+
+/// A scene prepared for solving: its faces, roots and occluders.
+pub struct Prepared {
+    pub faces: FaceSet,
+    pub roots: Vec<ElementRoot>,
+    pub visibility: Visibility,
+    pub diagonal: f64,
+}
+
+/// Refuses scenes with nothing to solve; returns the warnings to add to the result.
+pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
+    if scene.triangles.is_empty() {
+        return Err(SceneError::Unsolvable("the scene has no triangles".into()));
+    }
+    if scene.emissive_triangle_count() == 0 {
+        if scene.lights.is_empty() {
+            return Err(SceneError::Unsolvable(
+                "nothing to solve: no material emits (emissiveFactor is zero everywhere) and there are no KHR_lights_punctual lights".into(),
+            ));
+        }
+        return Err(SceneError::Unsolvable(
+            "the scene is lit only by KHR_lights_punctual lights, which this version does not solve yet; add an emissive surface".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Builds faces, element roots and the visibility structure.
+pub fn prepare(scene: &Scene) -> Prepared {
+    let faces = build_faces(scene);
+    let roots = build_roots(scene, &faces);
+    let occluders = scene
+        .triangles
+        .iter()
+        .zip(&faces.face_of_triangle)
+        .filter_map(|(t, f)| f.map(|f| (t.vertices, f.0)));
+    let diagonal = scene.diagonal();
+    let visibility = Visibility::new(occluders, diagonal);
+    Prepared {
+        faces,
+        roots,
+        visibility,
+        diagonal,
+    }
+}
+
+/// Prepares and solves a scene.
+pub fn bake(
+    scene: &Scene,
+    params: SolverParams,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Result<(Prepared, Solution), SceneError> {
+    check_solvable(scene)?;
+    let mut prepared = prepare(scene);
+    let roots = std::mem::take(&mut prepared.roots);
+    let solution = solve(
+        roots,
+        &prepared.visibility,
+        prepared.diagonal,
+        params,
+        cancel,
+        observe,
+    );
+    prepared.roots = solution.roots.clone();
+    Ok((prepared, solution))
+}

@@ -1,0 +1,444 @@
+//! glTF/GLB import: bytes in, a validated [`Scene`] out, every problem reported with its place.
+//!
+//! Nothing here panics on bad input: the GLB container is checked before the `gltf` crate sees it,
+//! accessor reads go through bounds-checked readers, node graphs are walked with a visited set
+//! (cycles are reported, not followed), and the whole parse runs under `catch_unwind` as a last line.
+
+use super::buffers::load_buffers;
+pub use super::buffers::ExternalFiles;
+use super::error::{Problem, SceneError};
+use super::{LightKind, Material, PunctualLight, Scene, Triangle, TriangleSource};
+use glam::{DMat4, DVec3};
+use std::path::Path;
+
+/// Deepest node nesting followed; deeper is reported as a problem (protects the stack).
+const MAX_NODE_DEPTH: usize = 256;
+
+/// Loads a scene from a file; external buffers resolve next to the file.
+pub fn load_scene_from_path(path: &Path, max_triangles: usize) -> Result<Scene, SceneError> {
+    let bytes = std::fs::read(path)
+        .map_err(|e| SceneError::External(format!("cannot read '{}': {e}", path.display())))?;
+    let dir = path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| ".".into());
+    load_scene(&bytes, &ExternalFiles::Directory(dir), max_triangles)
+}
+
+/// Loads a scene from GLB or glTF JSON bytes.
+pub fn load_scene(
+    bytes: &[u8],
+    external: &ExternalFiles,
+    max_triangles: usize,
+) -> Result<Scene, SceneError> {
+    check_container(bytes)?;
+    let result = std::panic::catch_unwind(|| load_scene_unchecked(bytes, external, max_triangles));
+    match result {
+        Ok(r) => r,
+        Err(_) => Err(SceneError::Unreadable(
+            "the glTF parser failed on this file (it is malformed)".into(),
+        )),
+    }
+}
+
+/// Checks the GLB header and chunk table, or that a non-GLB file at least looks like JSON.
+fn check_container(bytes: &[u8]) -> Result<(), SceneError> {
+    if bytes.is_empty() {
+        return Err(SceneError::Unreadable("the file is empty".into()));
+    }
+    if bytes.starts_with(b"glTF") {
+        if bytes.len() < 20 {
+            return Err(SceneError::Unreadable(format!(
+                "GLB is truncated: {} bytes, shorter than its 12-byte header and first chunk header",
+                bytes.len()
+            )));
+        }
+        let u32_at =
+            |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+        let version = u32_at(4);
+        if version != 2 {
+            return Err(SceneError::Unreadable(format!(
+                "GLB version {version} is not supported (only glTF 2.0)"
+            )));
+        }
+        let length = u32_at(8) as usize;
+        if length != bytes.len() {
+            return Err(SceneError::Unreadable(format!(
+                "GLB header says {length} bytes but the file has {} (truncated or padded file)",
+                bytes.len()
+            )));
+        }
+        let mut offset = 12;
+        let mut chunk = 0;
+        while offset < length {
+            if offset + 8 > length {
+                return Err(SceneError::Unreadable(format!(
+                    "GLB chunk {chunk} header runs past the end of the file"
+                )));
+            }
+            let chunk_len = u32_at(offset) as usize;
+            let end = offset + 8 + chunk_len;
+            if end > length {
+                return Err(SceneError::Unreadable(format!(
+                    "GLB chunk {chunk} declares {chunk_len} bytes, past the end of the file (truncated)"
+                )));
+            }
+            offset = end;
+            chunk += 1;
+        }
+        return Ok(());
+    }
+    let first = bytes
+        .iter()
+        .skip_while(|b| b.is_ascii_whitespace() || **b == 0xEF || **b == 0xBB || **b == 0xBF)
+        .next();
+    if first != Some(&b'{') {
+        return Err(SceneError::Unreadable(
+            "neither a GLB (magic 'glTF') nor glTF JSON (starting with '{')".into(),
+        ));
+    }
+    Ok(())
+}
+
+fn load_scene_unchecked(
+    bytes: &[u8],
+    external: &ExternalFiles,
+    max_triangles: usize,
+) -> Result<Scene, SceneError> {
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice(bytes).map_err(|e| SceneError::Unreadable(e.to_string()))?;
+    let buffers = load_buffers(&document, blob, external)?;
+    let mut warnings = Vec::new();
+    let mut problems = Vec::new();
+
+    let materials = read_materials(&document, &mut warnings, &mut problems);
+    let default_material = materials.len() as u32;
+    let mut materials = materials;
+    let mut uses_default = false;
+
+    // Nodes to walk: the default scene, else the first scene, else every root node.
+    let roots: Vec<gltf::Node> = match document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    {
+        Some(scene) => scene.nodes().collect(),
+        None => {
+            let mut is_child = vec![false; document.nodes().len()];
+            for n in document.nodes() {
+                for c in n.children() {
+                    is_child[c.index()] = true;
+                }
+            }
+            document.nodes().filter(|n| !is_child[n.index()]).collect()
+        }
+    };
+
+    let mut triangles = Vec::new();
+    let mut lights = Vec::new();
+    let mut visited = vec![false; document.nodes().len()];
+    let mut stack: Vec<(gltf::Node, DMat4, usize)> =
+        roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
+    let mut ignored_modes = 0usize;
+    while let Some((node, parent, depth)) = stack.pop() {
+        if visited[node.index()] {
+            problems.push(Problem {
+                place: format!("node {}", node.index()),
+                message: "is reached twice in the node graph (a cycle, or a node with two parents)"
+                    .into(),
+            });
+            continue;
+        }
+        visited[node.index()] = true;
+        if depth > MAX_NODE_DEPTH {
+            problems.push(Problem {
+                place: format!("node {}", node.index()),
+                message: format!("nesting deeper than {MAX_NODE_DEPTH} levels"),
+            });
+            continue;
+        }
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+        let world = parent * local;
+        if !world.is_finite() {
+            problems.push(Problem {
+                place: format!("node {}", node.index()),
+                message: "its transform is not finite (NaN or infinity)".into(),
+            });
+            continue;
+        }
+        if let Some(mesh) = node.mesh() {
+            let before = triangles.len();
+            read_mesh(
+                &mesh,
+                world,
+                &buffers,
+                default_material,
+                &mut uses_default,
+                &mut triangles,
+                &mut problems,
+                &mut ignored_modes,
+                max_triangles,
+            );
+            if triangles.len() > max_triangles {
+                return Err(SceneError::Unsolvable(format!(
+                    "the scene has more than {max_triangles} triangles (the limit --max-triangles); simplify it or raise the limit"
+                )));
+            }
+            let _ = before;
+        }
+        if let Some(light) = node.light() {
+            match read_light(&light, world) {
+                Ok(l) => lights.push(l),
+                Err(message) => problems.push(Problem {
+                    place: format!("node {} light {}", node.index(), light.index()),
+                    message,
+                }),
+            }
+        }
+        for child in node.children() {
+            stack.push((child, world, depth + 1));
+        }
+    }
+    if ignored_modes > 0 {
+        warnings.push(format!(
+            "{ignored_modes} primitive(s) of points or lines ignored: only surfaces take part in radiosity"
+        ));
+    }
+    if uses_default {
+        materials.push(Material::gltf_default());
+    }
+    if !problems.is_empty() {
+        return Err(SceneError::Invalid(problems));
+    }
+    Ok(Scene::new(triangles, materials, lights, warnings))
+}
+
+fn read_materials(
+    document: &gltf::Document,
+    warnings: &mut Vec<String>,
+    problems: &mut Vec<Problem>,
+) -> Vec<Material> {
+    let mut textured = 0;
+    let materials: Vec<Material> = document
+        .materials()
+        .map(|m| {
+            let index = m.index().unwrap_or(0);
+            let pbr = m.pbr_metallic_roughness();
+            let base = pbr.base_color_factor();
+            let strength = m.emissive_strength().unwrap_or(1.0) as f64;
+            let ef = m.emissive_factor();
+            let emission = ef.map(|e| e as f64 * strength);
+            let rho = [base[0], base[1], base[2]].map(|c| f64::from(c).clamp(0.0, 1.0));
+            if emission.iter().any(|e| !e.is_finite() || *e < 0.0) || base.iter().any(|c| !c.is_finite()) {
+                problems.push(Problem {
+                    place: format!("material {index}"),
+                    message: "baseColorFactor, emissiveFactor or emissiveStrength is not a finite non-negative number".into(),
+                });
+            }
+            let has_texture =
+                pbr.base_color_texture().is_some() || m.emissive_texture().is_some();
+            if has_texture {
+                textured += 1;
+            }
+            Material {
+                name: m.name().map(str::to_owned).unwrap_or_else(|| format!("material_{index}")),
+                rho,
+                emission,
+                double_sided: m.double_sided(),
+                has_texture,
+            }
+        })
+        .collect();
+    if textured > 0 {
+        warnings.push(format!(
+            "{textured} material(s) have base colour or emissive textures: textures are not read yet, their factors alone are used"
+        ));
+    }
+    materials
+}
+
+#[allow(clippy::too_many_arguments)]
+fn read_mesh(
+    mesh: &gltf::Mesh,
+    world: DMat4,
+    buffers: &[Vec<u8>],
+    default_material: u32,
+    uses_default: &mut bool,
+    triangles: &mut Vec<Triangle>,
+    problems: &mut Vec<Problem>,
+    ignored_modes: &mut usize,
+    max_triangles: usize,
+) {
+    let mirrored = world.determinant() < 0.0;
+    for primitive in mesh.primitives() {
+        let place = format!("mesh {} primitive {}", mesh.index(), primitive.index());
+        let mode = primitive.mode();
+        use gltf::mesh::Mode;
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            *ignored_modes += 1;
+            continue;
+        }
+        let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+        let Some(positions) = reader.read_positions() else {
+            problems.push(Problem {
+                place,
+                message: "has no readable POSITION attribute (missing, or its accessor runs past its buffer)".into(),
+            });
+            continue;
+        };
+        let positions: Vec<DVec3> = positions
+            .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+            .collect();
+        let bad: Vec<usize> = positions
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| !p.is_finite())
+            .map(|(i, _)| i)
+            .collect();
+        if !bad.is_empty() {
+            problems.push(Problem {
+                place: place.clone(),
+                message: format!(
+                    "{} vertex position(s) are NaN or infinite (first: vertex {})",
+                    bad.len(),
+                    bad[0]
+                ),
+            });
+            continue;
+        }
+        let indices: Vec<u32> = match primitive.indices() {
+            Some(_) => match reader.read_indices() {
+                Some(ix) => ix.into_u32().collect(),
+                None => {
+                    problems.push(Problem {
+                        place,
+                        message: "its index accessor runs past its buffer".into(),
+                    });
+                    continue;
+                }
+            },
+            None => (0..positions.len() as u32).collect(),
+        };
+        let n = positions.len() as u32;
+        if let Some((i, &bad)) = indices.iter().enumerate().find(|(_, &ix)| ix >= n) {
+            let count = indices.iter().filter(|&&ix| ix >= n).count();
+            problems.push(Problem {
+                place,
+                message: format!(
+                    "{count} index(es) out of range: index {i} is {bad}, but the primitive has {n} vertices"
+                ),
+            });
+            continue;
+        }
+        let tri_indices: Vec<[u32; 3]> = match mode {
+            Mode::Triangles => {
+                if indices.len() % 3 != 0 {
+                    problems.push(Problem {
+                        place: place.clone(),
+                        message: format!("{} indices is not a multiple of 3", indices.len()),
+                    });
+                }
+                indices
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect()
+            }
+            Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+                .map(|i| {
+                    if i % 2 == 0 {
+                        [indices[i], indices[i + 1], indices[i + 2]]
+                    } else {
+                        [indices[i + 1], indices[i], indices[i + 2]]
+                    }
+                })
+                .collect(),
+            _ => (1..indices.len().saturating_sub(1))
+                .map(|i| [indices[0], indices[i], indices[i + 1]])
+                .collect(),
+        };
+        if triangles.len() + tri_indices.len() > max_triangles {
+            // The caller reports the limit; don't allocate further.
+            triangles.extend(std::iter::repeat_n(
+                Triangle {
+                    vertices: [DVec3::ZERO; 3],
+                    material: 0,
+                    source: TriangleSource {
+                        mesh: 0,
+                        primitive: 0,
+                        triangle: 0,
+                    },
+                },
+                max_triangles + 1 - triangles.len(),
+            ));
+            return;
+        }
+        let material = match primitive.material().index() {
+            Some(i) => i as u32,
+            None => {
+                *uses_default = true;
+                default_material
+            }
+        };
+        for (k, idx) in tri_indices.iter().enumerate() {
+            let mut v = idx.map(|i| world.transform_point3(positions[i as usize]));
+            if mirrored {
+                v.swap(1, 2);
+            }
+            if v.iter().any(|p| !p.is_finite()) {
+                problems.push(Problem {
+                    place: format!("{place} triangle {k}"),
+                    message: "transformed position is not finite (overflow)".into(),
+                });
+                continue;
+            }
+            triangles.push(Triangle {
+                vertices: v,
+                material,
+                source: TriangleSource {
+                    mesh: mesh.index() as u32,
+                    primitive: primitive.index() as u32,
+                    triangle: k as u32,
+                },
+            });
+        }
+    }
+}
+
+fn read_light(
+    light: &gltf::khr_lights_punctual::Light,
+    world: DMat4,
+) -> Result<PunctualLight, String> {
+    use gltf::khr_lights_punctual::Kind;
+    let c = light.color();
+    let i = light.intensity() as f64;
+    let intensity = [c[0] as f64 * i, c[1] as f64 * i, c[2] as f64 * i];
+    if intensity.iter().any(|x| !x.is_finite() || *x < 0.0) {
+        return Err("colour * intensity is not a finite non-negative number".into());
+    }
+    let position = world.transform_point3(DVec3::ZERO);
+    // Lights point along their local -Z.
+    let direction = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+    if direction == DVec3::ZERO && !matches!(light.kind(), Kind::Point) {
+        return Err("its node transform collapses the light's direction".into());
+    }
+    let kind = match light.kind() {
+        Kind::Point => LightKind::Point { position },
+        Kind::Directional => LightKind::Directional { direction },
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => LightKind::Spot {
+            position,
+            direction,
+            inner_cone_angle: inner_cone_angle as f64,
+            outer_cone_angle: outer_cone_angle as f64,
+        },
+    };
+    Ok(PunctualLight {
+        name: light.name().unwrap_or("light").to_owned(),
+        kind,
+        intensity,
+    })
+}

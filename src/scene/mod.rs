@@ -1,0 +1,192 @@
+//! Scene: what a glTF file holds, in world space and validated.
+//!
+//! Owns the triangles (world frame, metres, `f64`), the materials (rho, L_e, sides) and the
+//! punctual lights. Everything past this module takes a [`Scene`], never raw glTF.
+//!
+//! Invariants of a [`Scene`] built by [`load_scene`]:
+//! - every vertex coordinate is finite; every triangle's material index is valid;
+//! - a triangle's vertices are in counter-clockwise order about its front normal in world space
+//!   (node transforms with a negative determinant have been compensated);
+//! - `rho` is clamped to `[0, 1]`, `emission` (L_e) is finite and non-negative.
+//!
+//! Degenerate (zero-area) triangles are kept here; the face builder drops and counts them.
+
+mod buffers;
+mod error;
+mod gltf_import;
+pub mod gltf_writer;
+
+pub use error::{Problem, SceneError};
+pub use gltf_import::{load_scene, load_scene_from_path, ExternalFiles};
+
+use glam::DVec3;
+
+/// Linear RGB triple (per colour channel quantities: rho, L_e, radiosity...).
+pub type Rgb = [f64; 3];
+
+/// A surface material as the solver sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Material {
+    /// glTF material name (or `material_N`).
+    pub name: String,
+    /// Reflectance, `baseColorFactor.rgb` clamped to `[0, 1]`.
+    pub rho: Rgb,
+    /// Emitted radiance L_e = `emissiveFactor * emissiveStrength`.
+    pub emission: Rgb,
+    /// Two radiosity sides (glTF `doubleSided`).
+    pub double_sided: bool,
+    /// The glTF material had a texture whose content is ignored.
+    pub has_texture: bool,
+}
+
+impl Material {
+    /// The default glTF material: white, single-sided, not emissive.
+    pub fn gltf_default() -> Self {
+        Material {
+            name: "default".into(),
+            rho: [1.0; 3],
+            emission: [0.0; 3],
+            double_sided: false,
+            has_texture: false,
+        }
+    }
+
+    /// True when the material emits on any channel.
+    pub fn is_emissive(&self) -> bool {
+        self.emission.iter().any(|&e| e > 0.0)
+    }
+}
+
+/// One world-space triangle, counter-clockwise about its front normal.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Triangle {
+    pub vertices: [DVec3; 3],
+    pub material: u32,
+    /// Where it came from: mesh index, primitive index, triangle index within the primitive.
+    pub source: TriangleSource,
+}
+
+/// The place of a triangle in the glTF file, for messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TriangleSource {
+    pub mesh: u32,
+    pub primitive: u32,
+    pub triangle: u32,
+}
+
+impl Triangle {
+    /// Unnormalised normal: `(b - a) x (c - a)`, length twice the area.
+    pub fn cross(&self) -> DVec3 {
+        let [a, b, c] = self.vertices;
+        (b - a).cross(c - a)
+    }
+
+    pub fn area(&self) -> f64 {
+        0.5 * self.cross().length()
+    }
+}
+
+/// A `KHR_lights_punctual` light, in world space.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PunctualLight {
+    pub name: String,
+    pub kind: LightKind,
+    /// `color * intensity`: candela (W/sr) for point and spot, lux (W/m^2) for directional.
+    pub intensity: Rgb,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum LightKind {
+    Point {
+        position: DVec3,
+    },
+    Spot {
+        position: DVec3,
+        /// Unit direction the spot points to.
+        direction: DVec3,
+        inner_cone_angle: f64,
+        outer_cone_angle: f64,
+    },
+    /// Light travelling along `direction` (unit).
+    Directional {
+        direction: DVec3,
+    },
+}
+
+/// Axis-aligned bounds of the scene's vertices.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bounds {
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl Bounds {
+    pub fn empty() -> Self {
+        Bounds {
+            min: DVec3::splat(f64::INFINITY),
+            max: DVec3::splat(f64::NEG_INFINITY),
+        }
+    }
+    pub fn extend(&mut self, p: DVec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+    pub fn diagonal(&self) -> f64 {
+        if self.min.x > self.max.x {
+            return 0.0;
+        }
+        (self.max - self.min).length()
+    }
+}
+
+/// A validated scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub triangles: Vec<Triangle>,
+    pub materials: Vec<Material>,
+    pub lights: Vec<PunctualLight>,
+    pub bounds: Bounds,
+    /// Things the user should know that did not stop the import (ignored textures, lines...).
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Builds a scene from parts, computing bounds. Used by tests and by the importer.
+    pub fn new(
+        triangles: Vec<Triangle>,
+        materials: Vec<Material>,
+        lights: Vec<PunctualLight>,
+        warnings: Vec<String>,
+    ) -> Self {
+        let mut bounds = Bounds::empty();
+        for t in &triangles {
+            for v in t.vertices {
+                bounds.extend(v);
+            }
+        }
+        Scene {
+            triangles,
+            materials,
+            lights,
+            bounds,
+            warnings,
+        }
+    }
+
+    /// The length of the bounding-box diagonal: the scale every geometric tolerance is relative to.
+    pub fn diagonal(&self) -> f64 {
+        self.bounds.diagonal()
+    }
+
+    pub fn material(&self, t: &Triangle) -> &Material {
+        &self.materials[t.material as usize]
+    }
+
+    /// Number of triangles whose material emits.
+    pub fn emissive_triangle_count(&self) -> usize {
+        self.triangles
+            .iter()
+            .filter(|t| self.material(t).is_emissive())
+            .count()
+    }
+}

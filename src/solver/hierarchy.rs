@@ -1,0 +1,229 @@
+//! The element hierarchy of one root: a 4-ary tree of sub-elements stored in an arena, with
+//! per-node coefficient arrays (per colour channel) for irradiance and unshot radiosity.
+//!
+//! Invariants (checked by [`Hierarchy::assert_well_formed`]):
+//! - node 0 is the root, with the identity map; children are created four at a time, contiguous,
+//!   and a child's map is its parent's map followed by the shape's child map;
+//! - outside a shot (`dh` all zero) every level holds the projection onto its basis of the
+//!   function held by the leaves (push-pull consistency): `pull(children) == parent` for `h`, `hd`, `u`.
+
+use super::basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
+use crate::domain::Shape;
+use crate::scene::Rgb;
+use glam::DVec2;
+
+/// One element of the hierarchy.
+#[derive(Debug, Clone, Copy)]
+pub struct Node {
+    /// This element's map in the root's reference coordinates.
+    pub map: ChildMap,
+    pub depth: u8,
+    /// Index of the first of four contiguous children, 0 when a leaf.
+    pub first_child: u32,
+}
+
+impl Node {
+    pub fn is_leaf(&self) -> bool {
+        self.first_child == 0
+    }
+}
+
+/// The hierarchy of one element root. Coefficient arrays hold `len` entries per node.
+#[derive(Debug, Clone, Default)]
+pub struct Hierarchy {
+    pub nodes: Vec<Node>,
+    /// Irradiance H received, all orders of light.
+    pub h: Vec<Rgb>,
+    /// Irradiance received straight from emitters (and, later, punctual lights).
+    pub hd: Vec<Rgb>,
+    /// Unshot radiosity.
+    pub u: Vec<Rgb>,
+    /// Irradiance gathered at this node during the current shot, not yet pushed and pulled.
+    pub dh: Vec<Rgb>,
+    /// Basis functions per node.
+    pub len: usize,
+    /// Whether `dh` holds anything.
+    pub touched: bool,
+}
+
+impl Hierarchy {
+    pub fn new(len: usize) -> Self {
+        Hierarchy {
+            nodes: vec![Node {
+                map: ChildMap::IDENTITY,
+                depth: 0,
+                first_child: 0,
+            }],
+            h: vec![[0.0; 3]; len],
+            hd: vec![[0.0; 3]; len],
+            u: vec![[0.0; 3]; len],
+            dh: vec![[0.0; 3]; len],
+            len,
+            touched: false,
+        }
+    }
+
+    pub fn coeffs<'a>(&self, array: &'a [Rgb], node: usize) -> &'a [Rgb] {
+        &array[node * self.len..(node + 1) * self.len]
+    }
+
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.iter().filter(|n| n.is_leaf()).count()
+    }
+
+    /// Splits leaf `node` into four children holding the pushed coefficients; returns the first child.
+    pub fn split(&mut self, node: usize, basis: &Basis, shape: Shape) -> usize {
+        debug_assert!(self.nodes[node].is_leaf());
+        let first = self.nodes.len();
+        let parent = self.nodes[node];
+        let maps = child_maps(shape);
+        for (c, m) in maps.iter().enumerate() {
+            self.nodes.push(Node {
+                map: parent.map.then(m),
+                depth: parent.depth + 1,
+                first_child: 0,
+            });
+            for array in [0, 1, 2] {
+                let arr = match array {
+                    0 => &mut self.h,
+                    1 => &mut self.hd,
+                    _ => &mut self.u,
+                };
+                let mut child = [[0.0; 3]; MAX_FUNCTIONS];
+                basis.push(
+                    c,
+                    &arr[node * self.len..(node + 1) * self.len],
+                    &mut child[..self.len],
+                );
+                arr.extend_from_slice(&child[..self.len]);
+            }
+            self.dh.extend(std::iter::repeat_n([0.0; 3], self.len));
+        }
+        self.nodes[node].first_child = first as u32;
+        first
+    }
+
+    /// Pushes `dh` down to the leaves and pulls it back up, adding the result to `h` (and `hd` when
+    /// `direct`) and `rho * result` to `u`; clears `dh`.
+    pub fn push_pull(&mut self, basis: &Basis, rho: Rgb, direct: bool) {
+        let zero = [[0.0; 3]; MAX_FUNCTIONS];
+        self.push_pull_node(0, &zero, basis, rho, direct);
+        self.touched = false;
+    }
+
+    fn push_pull_node(
+        &mut self,
+        node: usize,
+        inherited: &[Rgb; MAX_FUNCTIONS],
+        basis: &Basis,
+        rho: Rgb,
+        direct: bool,
+    ) -> [Rgb; MAX_FUNCTIONS] {
+        let n = self.len;
+        let mut total = *inherited;
+        for i in 0..n {
+            for k in 0..3 {
+                total[i][k] += self.dh[node * n + i][k];
+            }
+            self.dh[node * n + i] = [0.0; 3];
+        }
+        let first = self.nodes[node].first_child as usize;
+        let result = if first == 0 {
+            total
+        } else {
+            let mut result = [[0.0; 3]; MAX_FUNCTIONS];
+            for c in 0..4 {
+                let mut child_inh = [[0.0; 3]; MAX_FUNCTIONS];
+                basis.push(c, &total[..n], &mut child_inh[..n]);
+                let r = self.push_pull_node(first + c, &child_inh, basis, rho, direct);
+                basis.pull_add(c, &r[..n], &mut result[..n]);
+            }
+            result
+        };
+        for i in 0..n {
+            for k in 0..3 {
+                self.h[node * n + i][k] += result[i][k];
+                self.u[node * n + i][k] += rho[k] * result[i][k];
+                if direct {
+                    self.hd[node * n + i][k] += result[i][k];
+                }
+            }
+        }
+        result
+    }
+
+    /// The leaf containing root point `st`, and `st` in that leaf's local coordinates.
+    pub fn locate(&self, st: DVec2, shape: Shape) -> (usize, DVec2) {
+        let mut node = 0;
+        loop {
+            let first = self.nodes[node].first_child as usize;
+            let local = self.nodes[node].map.local(st);
+            if first == 0 {
+                return (node, local);
+            }
+            node = first + child_index(shape, local);
+        }
+    }
+
+    /// Checks the structural and push-pull invariants (tests call it after every change).
+    pub fn assert_well_formed(&self, basis: &Basis, shape: Shape) {
+        let n = self.len;
+        assert_eq!(self.h.len(), self.nodes.len() * n);
+        assert_eq!(self.u.len(), self.nodes.len() * n);
+        let maps = child_maps(shape);
+        for (i, node) in self.nodes.iter().enumerate() {
+            let first = node.first_child as usize;
+            if first == 0 {
+                continue;
+            }
+            assert!(
+                first > i && first + 4 <= self.nodes.len(),
+                "children of {i} out of order"
+            );
+            for (c, m) in maps.iter().enumerate() {
+                let child = &self.nodes[first + c];
+                assert_eq!(child.depth, node.depth + 1);
+                let expected = node.map.then(m);
+                assert!((child.map.o - expected.o).length() < 1e-12);
+            }
+            for array in [&self.h, &self.u, &self.hd] {
+                let mut pulled = [[0.0; 3]; MAX_FUNCTIONS];
+                for c in 0..4 {
+                    basis.pull_add(
+                        c,
+                        &array[(first + c) * n..(first + c + 1) * n],
+                        &mut pulled[..n],
+                    );
+                }
+                for a in 0..n {
+                    for k in 0..3 {
+                        let p = array[i * n + a][k];
+                        assert!(
+                            (pulled[a][k] - p).abs() <= 1e-9 * (1.0 + p.abs()),
+                            "node {i} coefficient {a}: pulled {} vs stored {p}",
+                            pulled[a][k]
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Which child of a reference shape contains local point `st` (ties go to the lower index).
+pub fn child_index(shape: Shape, st: DVec2) -> usize {
+    match shape {
+        Shape::Parallelogram => (st.x >= 0.5) as usize + 2 * (st.y >= 0.5) as usize,
+        Shape::Triangle => {
+            if st.x + st.y <= 0.5 {
+                0
+            } else if st.x >= 0.5 {
+                1
+            } else if st.y >= 0.5 {
+                2
+            } else {
+                3
+            }
+        }
+    }
+}

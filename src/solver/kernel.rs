@@ -1,0 +1,140 @@
+//! The radiosity kernel: point-to-point `G = cos cos / (pi r^2)` and the exact point-to-polygon
+//! form factor (Lambert's contour integral) used for the constant part of every transfer.
+//!
+//! `point_polygon_form_factor(x, n, polygon)` is exact for an unoccluded planar polygon: the polygon
+//! is first clipped to the half-space in front of `x`'s tangent plane, so it is also exact for
+//! sources that cross the receiver's plane. Units: form factors are dimensionless.
+
+use glam::DVec3;
+use std::f64::consts::PI;
+
+/// `cos(theta_x) cos(theta_y) / (pi r^2)` for points `x`, `y` with unit normals `nx`, `ny`;
+/// zero when either point faces away.
+#[inline]
+pub fn geometric_kernel(x: DVec3, nx: DVec3, y: DVec3, ny: DVec3) -> f64 {
+    let d = y - x;
+    let r2 = d.length_squared();
+    if r2 <= 0.0 {
+        return 0.0;
+    }
+    let cx = nx.dot(d);
+    let cy = -ny.dot(d);
+    if cx <= 0.0 || cy <= 0.0 {
+        return 0.0;
+    }
+    cx * cy / (PI * r2 * r2)
+}
+
+/// Clips a convex or concave planar polygon to `n . (p - x) >= 0` (Sutherland-Hodgman).
+pub fn clip_to_front(x: DVec3, n: DVec3, polygon: &[DVec3], out: &mut Vec<DVec3>) {
+    out.clear();
+    let len = polygon.len();
+    for i in 0..len {
+        let a = polygon[i];
+        let b = polygon[(i + 1) % len];
+        let da = n.dot(a - x);
+        let db = n.dot(b - x);
+        if da >= 0.0 {
+            out.push(a);
+        }
+        if (da >= 0.0) != (db >= 0.0) {
+            let t = da / (da - db);
+            out.push(a + (b - a) * t);
+        }
+    }
+}
+
+/// Exact form factor from a differential area at `x` (unit normal `n`) to a planar polygon,
+/// without occlusion. Zero for a polygon entirely behind the tangent plane.
+pub fn point_polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
+    let mut clipped = Vec::with_capacity(polygon.len() + 2);
+    clip_to_front(x, n, polygon, &mut clipped);
+    if clipped.len() < 3 {
+        return 0.0;
+    }
+    // A polygon lying in the tangent plane subtends no projected solid angle.
+    let extent = clipped
+        .iter()
+        .map(|p| (*p - x).length())
+        .fold(0.0, f64::max);
+    if clipped.iter().all(|p| n.dot(*p - x) <= 1e-12 * extent) {
+        return 0.0;
+    }
+    let mut sum = 0.0;
+    let m = clipped.len();
+    for i in 0..m {
+        let a = clipped[i] - x;
+        let b = clipped[(i + 1) % m] - x;
+        let c = a.cross(b);
+        let cl = c.length();
+        if cl <= 1e-300 {
+            continue;
+        }
+        let angle = cl.atan2(a.dot(b));
+        sum += angle * n.dot(c) / cl;
+    }
+    (sum / (2.0 * PI)).abs()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn unit_square_at(z: f64) -> Vec<DVec3> {
+        vec![
+            DVec3::new(-0.5, -0.5, z),
+            DVec3::new(0.5, -0.5, z),
+            DVec3::new(0.5, 0.5, z),
+            DVec3::new(-0.5, 0.5, z),
+        ]
+    }
+
+    #[test]
+    fn point_one_metre_under_unit_square_centre() {
+        let f = point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &unit_square_at(1.0));
+        assert!((f - 0.239456).abs() < 1e-6, "{f}");
+        // Orientation of the polygon does not matter.
+        let mut rev = unit_square_at(1.0);
+        rev.reverse();
+        assert!((point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &rev) - f).abs() < 1e-12);
+    }
+
+    #[test]
+    fn hemisphere_covering_polygon_has_form_factor_one() {
+        // A huge square above the point sees almost the whole hemisphere.
+        let big: Vec<DVec3> = unit_square_at(1.0)
+            .iter()
+            .map(|p| DVec3::new(p.x * 1e7, p.y * 1e7, 1.0))
+            .collect();
+        let f = point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &big);
+        assert!((f - 1.0).abs() < 1e-6, "{f}");
+    }
+
+    #[test]
+    fn contour_matches_brute_force_quadrature_for_a_tilted_clipped_polygon() {
+        // A square crossing the receiver's tangent plane: only the part in front counts.
+        let poly = vec![
+            DVec3::new(-0.5, 1.0, -0.5),
+            DVec3::new(0.5, 1.0, -0.5),
+            DVec3::new(0.5, 0.7, 1.0),
+            DVec3::new(-0.5, 0.7, 1.0),
+        ];
+        let f = point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &poly);
+        let (o, u, v) = (poly[0], poly[1] - poly[0], poly[3] - poly[0]);
+        let ny = u.cross(v).normalize();
+        let ny = if ny.dot(-o) > 0.0 { ny } else { -ny };
+        let area = u.cross(v).length();
+        let n = 800;
+        let mut q = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let y = o + u * ((i as f64 + 0.5) / n as f64) + v * ((j as f64 + 0.5) / n as f64);
+                q += geometric_kernel(DVec3::ZERO, DVec3::Z, y, ny) * area / (n * n) as f64;
+            }
+        }
+        assert!(
+            (f - q).abs() < 1e-4 * q.max(1e-3),
+            "contour {f} vs quadrature {q}"
+        );
+    }
+}

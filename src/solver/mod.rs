@@ -1,0 +1,667 @@
+//! The solver: hierarchical multi-wavelet radiosity by progressive shooting.
+//!
+//! Owns the element hierarchies of every root, the transfer of light between elements (quadrature
+//! with the exact point-to-polygon form factor for the constant part, visibility by rays), the
+//! refinement oracle and the shooting loop. It does no I/O and knows neither glTF nor HTTP.
+//!
+//! Shooting (DESIGN.md 5.1): emitters first shoot their emission (the "direct" shots, recorded
+//! apart so `--indirect-only` can leave them out); then the root with the most unshot power shoots
+//! until `unshot_ratio = unshot power / emitted power <= target`. Links are not cached: each
+//! transfer is recomputed when its source shoots again (memory stays proportional to elements).
+//! Receivers of one shot are processed in parallel (rayon); the shooter is read-only during it,
+//! and is refined only virtually (sub-elements computed by push, not stored).
+
+pub mod basis;
+pub mod hierarchy;
+pub mod kernel;
+pub mod quadrature;
+pub mod visibility;
+
+use crate::domain::{ElementRoot, Shape};
+use crate::scene::Rgb;
+use basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
+use glam::{DVec2, DVec3};
+use hierarchy::Hierarchy;
+use quadrature::{rule, QuadPoint};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+use visibility::Visibility;
+
+/// What lightmaps and probes hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Quantity {
+    /// `L = B / pi`, emission included.
+    Radiance,
+    /// `H / pi`, emission not included.
+    Irradiance,
+}
+
+/// Default refinement tolerance: a transfer is refined while its estimated error exceeds this
+/// fraction of the scene's emitted power.
+pub const DEFAULT_TOLERANCE: f64 = 1e-4;
+/// Deepest subdivision of an element (4^depth sub-elements at most).
+pub const MAX_DEPTH: u8 = 9;
+/// Elements are not split below this edge length, relative to the scene diagonal.
+pub const MIN_EDGE_REL: f64 = 1e-3;
+/// Safety limit on shots (a closed scene of rho = 1 never converges).
+pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
+
+/// Solver settings (the CONTRACT's solver options that reach the solver).
+#[derive(Debug, Clone)]
+pub struct SolverParams {
+    pub order: usize,
+    pub target_unshot: f64,
+    pub tolerance: f64,
+    pub max_seconds: Option<f64>,
+    pub quantity: Quantity,
+    pub indirect_only: bool,
+    pub max_iterations: u64,
+}
+
+impl Default for SolverParams {
+    fn default() -> Self {
+        SolverParams {
+            order: 2,
+            target_unshot: 1e-3,
+            tolerance: DEFAULT_TOLERANCE,
+            max_seconds: None,
+            quantity: Quantity::Radiance,
+            indirect_only: false,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+        }
+    }
+}
+
+/// Why the shooting loop stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StopReason {
+    Converged,
+    TimeBudget,
+    Cancelled,
+    IterationLimit,
+}
+
+impl StopReason {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StopReason::Converged => "converged",
+            StopReason::TimeBudget => "time_budget",
+            StopReason::Cancelled => "cancelled",
+            StopReason::IterationLimit => "iteration_limit",
+        }
+    }
+}
+
+/// Progress after a shot (feeds the CLI bar, convergence.csv and the HTTP progress object).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Progress {
+    pub iterations: u64,
+    pub unshot_ratio: f64,
+    pub elements: u64,
+    pub links: u64,
+    pub seconds: f64,
+}
+
+/// Counters of rare numerical fallbacks and work done.
+#[derive(Debug, Clone, Default)]
+pub struct SolveStats {
+    pub iterations: u64,
+    pub links: u64,
+    pub elements: u64,
+    pub rays: u64,
+    pub seconds: f64,
+    pub unshot_ratio: f64,
+    pub emitted_power: Rgb,
+    pub stop_reason: Option<StopReason>,
+    /// Transfers accepted above tolerance because neither side could be split further.
+    pub refinement_capped: u64,
+}
+
+/// The solved scene: roots, their hierarchies, and what it took.
+#[derive(Debug)]
+pub struct Solution {
+    pub roots: Vec<ElementRoot>,
+    pub hierarchies: Vec<Hierarchy>,
+    pub params: SolverParams,
+    pub stats: SolveStats,
+    pub convergence: Vec<Progress>,
+    bases: Bases,
+}
+
+#[derive(Debug, Clone)]
+struct Bases {
+    triangle: Basis,
+    parallelogram: Basis,
+}
+
+impl Bases {
+    fn new(order: usize) -> Self {
+        Bases {
+            triangle: Basis::new(Shape::Triangle, order),
+            parallelogram: Basis::new(Shape::Parallelogram, order),
+        }
+    }
+    fn of(&self, shape: Shape) -> &Basis {
+        match shape {
+            Shape::Triangle => &self.triangle,
+            Shape::Parallelogram => &self.parallelogram,
+        }
+    }
+}
+
+/// Quadrature rules per shape at the solver's order.
+struct Rules {
+    triangle: Vec<QuadPoint>,
+    parallelogram: Vec<QuadPoint>,
+}
+
+impl Rules {
+    fn of(&self, shape: Shape) -> &[QuadPoint] {
+        match shape {
+            Shape::Triangle => &self.triangle,
+            Shape::Parallelogram => &self.parallelogram,
+        }
+    }
+}
+
+fn mean_rgb_sum(c: Rgb) -> f64 {
+    c[0] + c[1] + c[2]
+}
+
+/// World geometry of a sub-element given its map in the root's reference coordinates.
+#[derive(Debug, Clone, Copy)]
+struct Patch {
+    origin: DVec3,
+    u: DVec3,
+    v: DVec3,
+    area: f64,
+}
+
+impl Patch {
+    fn new(root: &ElementRoot, map: &ChildMap) -> Self {
+        let f = &root.frame;
+        let origin = f.point(map.o);
+        let u = f.u * map.e1.x + f.v * map.e1.y;
+        let v = f.u * map.e2.x + f.v * map.e2.y;
+        let full = u.cross(v).length();
+        let area = match root.shape {
+            Shape::Triangle => 0.5 * full,
+            Shape::Parallelogram => full,
+        };
+        Patch { origin, u, v, area }
+    }
+    fn point(&self, st: DVec2) -> DVec3 {
+        self.origin + self.u * st.x + self.v * st.y
+    }
+    fn corners(&self, shape: Shape, out: &mut Vec<DVec3>) {
+        out.clear();
+        out.push(self.origin);
+        out.push(self.origin + self.u);
+        if shape == Shape::Parallelogram {
+            out.push(self.origin + self.u + self.v);
+        }
+        out.push(self.origin + self.v);
+    }
+    fn min_edge(&self) -> f64 {
+        self.u.length().min(self.v.length())
+    }
+}
+
+/// The source of a transfer: a stored element of the shooter, or a virtual sub-element.
+#[derive(Clone, Copy)]
+struct Source {
+    map: ChildMap,
+    depth: u8,
+    /// Stored node index when real.
+    node: Option<usize>,
+    coeffs: [Rgb; MAX_FUNCTIONS],
+}
+
+struct ShotContext<'a> {
+    roots: &'a [ElementRoot],
+    bases: &'a Bases,
+    rules: &'a Rules,
+    visibility: &'a Visibility,
+    source_root: usize,
+    source_hierarchy: &'a Hierarchy,
+    /// Absolute error threshold, in W (sum over channels).
+    threshold: f64,
+    min_edge: f64,
+    quantity: Quantity,
+    links: &'a AtomicU64,
+    capped: &'a AtomicU64,
+    cancel: &'a AtomicBool,
+}
+
+impl ShotContext<'_> {
+    fn source_children(&self, s: &Source) -> [Source; 4] {
+        let shape = self.roots[self.source_root].shape;
+        let basis = self.bases.of(shape);
+        let n = basis.len();
+        let maps = child_maps(shape);
+        std::array::from_fn(|c| match s.node {
+            Some(node) if !self.source_hierarchy.nodes[node].is_leaf() => {
+                let child = self.source_hierarchy.nodes[node].first_child as usize + c;
+                let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+                coeffs[..n].copy_from_slice(
+                    self.source_hierarchy
+                        .coeffs(&self.source_hierarchy.u, child),
+                );
+                Source {
+                    map: self.source_hierarchy.nodes[child].map,
+                    depth: s.depth + 1,
+                    node: Some(child),
+                    coeffs,
+                }
+            }
+            _ => {
+                let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+                basis.push(c, &s.coeffs[..n], &mut coeffs[..n]);
+                Source {
+                    map: s.map.then(&maps[c]),
+                    depth: s.depth + 1,
+                    node: None,
+                    coeffs,
+                }
+            }
+        })
+    }
+
+    /// Transfers the source's unshot radiosity to receiver node `b` of `rcv`, refining as needed.
+    fn transfer(&self, src: &Source, rcv_index: usize, rcv: &mut Hierarchy, b: usize) {
+        if self.cancel.load(Ordering::Relaxed) {
+            return;
+        }
+        let sroot = &self.roots[self.source_root];
+        let rroot = &self.roots[rcv_index];
+        let sbasis = self.bases.of(sroot.shape);
+        let rbasis = self.bases.of(rroot.shape);
+        let (ns, nr) = (sbasis.len(), rbasis.len());
+        if src.coeffs[..ns].iter().all(|c| c.iter().all(|&x| x == 0.0)) {
+            return;
+        }
+        let sp = Patch::new(sroot, &src.map);
+        let rnode = rcv.nodes[b];
+        let rp = Patch::new(rroot, &rnode.map);
+        let mut polygon = Vec::with_capacity(4);
+        sp.corners(sroot.shape, &mut polygon);
+
+        let srule = self.rules.of(sroot.shape);
+        let rrule = self.rules.of(rroot.shape);
+        let mut phi_s = [[0.0; MAX_FUNCTIONS]; 64];
+        let mut ys = [DVec3::ZERO; 64];
+        for (l, q) in srule.iter().enumerate() {
+            sbasis.eval(q.st, &mut phi_s[l]);
+            ys[l] = sp.point(q.st);
+        }
+        let ignore = [sroot.face.0, rroot.face.0];
+        let mut e_k = [[0.0f64; 3]; 64];
+        let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
+        let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
+        let mut any_visible = false;
+        let mut any_blocked = false;
+        for (k, q) in rrule.iter().enumerate() {
+            let x = rp.point(q.st);
+            rbasis.eval(q.st, &mut psi[k]);
+            let f_exact = kernel::point_polygon_form_factor(x, rroot.normal, &polygon);
+            if f_exact <= 0.0 {
+                continue;
+            }
+            let mut fq = 0.0;
+            let mut g = [0.0; MAX_FUNCTIONS];
+            let mut visible_points = 0usize;
+            let mut front_points = 0usize;
+            for (l, ql) in srule.iter().enumerate() {
+                let kxy = kernel::geometric_kernel(x, rroot.normal, ys[l], sroot.normal)
+                    * sp.area
+                    * ql.weight;
+                let vis = self.visibility.visible(x, ys[l], ignore);
+                if vis {
+                    any_visible = true;
+                    visible_points += 1;
+                } else {
+                    any_blocked = true;
+                }
+                if kxy > 0.0 {
+                    front_points += 1;
+                    fq += kxy;
+                    if vis {
+                        for bfn in 0..ns {
+                            g[bfn] += kxy * phi_s[l][bfn];
+                        }
+                    }
+                }
+            }
+            if fq > 0.0 && front_points > 0 {
+                let scale = f_exact / fq;
+                for gb in g.iter_mut().take(ns) {
+                    *gb *= scale;
+                }
+            } else {
+                // Every source point is on or behind the receiver's plane (touching elements):
+                // the exact form factor with the fraction of visible points, constant part only.
+                g = [0.0; MAX_FUNCTIONS];
+                g[0] = f_exact * visible_points as f64 / srule.len() as f64;
+            }
+            let mut e = [0.0; 3];
+            for bfn in 0..ns {
+                for ch in 0..3 {
+                    e[ch] += g[bfn] * src.coeffs[bfn][ch];
+                }
+            }
+            e_k[k] = e;
+            for a in 0..nr {
+                for ch in 0..3 {
+                    dh[a][ch] += q.weight * psi[k][a] * e[ch];
+                }
+            }
+        }
+
+        // Oracle: received irradiance at the control points against its projection.
+        let weight: Rgb = match self.quantity {
+            Quantity::Radiance => rroot.rho,
+            Quantity::Irradiance => [1.0; 3],
+        };
+        let mut err: f64 = 0.0;
+        for k in 0..rrule.len() {
+            let mut e = 0.0;
+            for ch in 0..3 {
+                let mut proj = 0.0;
+                for a in 0..nr {
+                    proj += dh[a][ch] * psi[k][a];
+                }
+                e += weight[ch] * (e_k[k][ch] - proj).abs();
+            }
+            err = err.max(e);
+        }
+        let err = err * rp.area;
+        if err > self.threshold {
+            let can_split_r = rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge;
+            let can_split_s = src.depth < MAX_DEPTH && sp.min_edge() * 0.5 >= self.min_edge;
+            let partial = any_visible && any_blocked;
+            let split_source = can_split_s && (!can_split_r || (partial && sp.area > rp.area));
+            if split_source {
+                for child in self.source_children(src) {
+                    self.transfer(&child, rcv_index, rcv, b);
+                }
+                return;
+            }
+            if can_split_r {
+                let first = if rnode.is_leaf() {
+                    rcv.split(b, rbasis, rroot.shape)
+                } else {
+                    rnode.first_child as usize
+                };
+                for c in 0..4 {
+                    self.transfer(src, rcv_index, rcv, first + c);
+                }
+                return;
+            }
+            self.capped.fetch_add(1, Ordering::Relaxed);
+        }
+        self.links.fetch_add(1, Ordering::Relaxed);
+        for a in 0..nr {
+            for ch in 0..3 {
+                rcv.dh[b * nr + a][ch] += dh[a][ch];
+            }
+        }
+        rcv.touched = true;
+    }
+}
+
+/// Can any point of `a` (front side) see any point of `b` (front side)?
+fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
+    let ca = a.corners();
+    let cb = b.corners();
+    let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
+    let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
+    b_in_front_of_a && a_in_front_of_b
+}
+
+/// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
+/// next check (between and inside shots).
+pub fn solve(
+    roots: Vec<ElementRoot>,
+    visibility: &Visibility,
+    diagonal: f64,
+    params: SolverParams,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Solution {
+    let start = Instant::now();
+    let bases = Bases::new(params.order);
+    let n = bases.triangle.len().max(bases.parallelogram.len());
+    let _ = n;
+    let rules = Rules {
+        triangle: rule(Shape::Triangle, params.order + 1),
+        parallelogram: rule(Shape::Parallelogram, params.order + 1),
+    };
+    let mut hierarchies: Vec<Hierarchy> = roots
+        .iter()
+        .map(|r| Hierarchy::new(bases.of(r.shape).len()))
+        .collect();
+    let mut emitted = [0.0; 3];
+    for r in &roots {
+        for ch in 0..3 {
+            emitted[ch] += r.exitance[ch] * r.area_m2;
+        }
+    }
+    let emitted_total = mean_rgb_sum(emitted);
+    let links = AtomicU64::new(0);
+    let capped = AtomicU64::new(0);
+    let threshold = params.tolerance * emitted_total;
+    let min_edge = MIN_EDGE_REL * diagonal;
+    let facing_eps = 1e-9 * diagonal;
+    let mut convergence = Vec::new();
+    let mut iterations = 0u64;
+    let unshot_power = |h: &Hierarchy, r: &ElementRoot| -> f64 { mean_rgb_sum(h.u[0]) * r.area_m2 };
+
+    // Emitters' unshot radiosity starts at their exitance; direct shots send it first.
+    let mut direct_queue: Vec<usize> = (0..roots.len())
+        .filter(|&i| mean_rgb_sum(roots[i].exitance) > 0.0)
+        .collect();
+    direct_queue.sort_by(|&a, &b| {
+        (mean_rgb_sum(roots[b].exitance) * roots[b].area_m2)
+            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].area_m2))
+    });
+    for &i in &direct_queue {
+        hierarchies[i].u[0] = roots[i].exitance;
+    }
+    let total_unshot =
+        |hs: &[Hierarchy]| -> f64 { hs.iter().zip(&roots).map(|(h, r)| unshot_power(h, r)).sum() };
+    let ratio = |hs: &[Hierarchy]| {
+        if emitted_total > 0.0 {
+            total_unshot(hs) / emitted_total
+        } else {
+            0.0
+        }
+    };
+    let mut stop = StopReason::Converged;
+    let mut direct_iter = direct_queue.into_iter();
+    loop {
+        let r = ratio(&hierarchies);
+        let progress = Progress {
+            iterations,
+            unshot_ratio: r,
+            elements: hierarchies.iter().map(|h| h.leaf_count() as u64).sum(),
+            links: links.load(Ordering::Relaxed),
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        convergence.push(progress);
+        observe(&progress);
+        if cancel.load(Ordering::Relaxed) {
+            stop = StopReason::Cancelled;
+            break;
+        }
+        if params.max_seconds.is_some_and(|m| progress.seconds >= m) {
+            stop = StopReason::TimeBudget;
+            break;
+        }
+        if iterations >= params.max_iterations {
+            stop = StopReason::IterationLimit;
+            break;
+        }
+        // Pick the shooter: next direct emitter, else the root with most unshot power.
+        let (shooter, direct) = match direct_iter.next() {
+            Some(i) => (i, true),
+            None => {
+                if r <= params.target_unshot {
+                    break;
+                }
+                let best = (0..roots.len()).max_by(|&a, &b| {
+                    unshot_power(&hierarchies[a], &roots[a])
+                        .total_cmp(&unshot_power(&hierarchies[b], &roots[b]))
+                });
+                match best {
+                    Some(b) if unshot_power(&hierarchies[b], &roots[b]) > 0.0 => (b, false),
+                    _ => break,
+                }
+            }
+        };
+        let sbasis_len = bases.of(roots[shooter].shape).len();
+        let source_h = std::mem::take(&mut hierarchies[shooter]);
+        let mut root_coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+        if direct {
+            // The emission alone (a constant), whatever else the emitter already received.
+            root_coeffs[0] = roots[shooter].exitance;
+        } else {
+            root_coeffs[..sbasis_len].copy_from_slice(source_h.coeffs(&source_h.u, 0));
+        }
+        let source = Source {
+            map: ChildMap::IDENTITY,
+            depth: 0,
+            node: if direct { None } else { Some(0) },
+            coeffs: root_coeffs,
+        };
+        {
+            let ctx = ShotContext {
+                roots: &roots,
+                bases: &bases,
+                rules: &rules,
+                visibility,
+                source_root: shooter,
+                source_hierarchy: &source_h,
+                threshold,
+                min_edge,
+                quantity: params.quantity,
+                links: &links,
+                capped: &capped,
+                cancel,
+            };
+            hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
+                if ri == shooter
+                    || h.nodes.is_empty()
+                    || !faces_each_other(&roots[shooter], &roots[ri], facing_eps)
+                {
+                    return;
+                }
+                ctx.transfer(&source, ri, h, 0);
+                if h.touched {
+                    h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, direct);
+                }
+            });
+        }
+        hierarchies[shooter] = source_h;
+        let hs = &mut hierarchies[shooter];
+        if direct {
+            // Remove exactly the emission that was shot; received light stays unshot.
+            for ch in 0..3 {
+                hs.u[0][ch] -= roots[shooter].exitance[ch];
+            }
+            // Keep deeper levels consistent: the emission is a constant, so only coefficient 0 of
+            // every node changes by the same amount.
+            let n = hs.len;
+            for node in 1..hs.nodes.len() {
+                for ch in 0..3 {
+                    hs.u[node * n][ch] -= roots[shooter].exitance[ch];
+                }
+            }
+        } else {
+            hs.u.iter_mut().for_each(|c| *c = [0.0; 3]);
+        }
+        iterations += 1;
+    }
+    let last = *convergence.last().expect("at least one progress row");
+    let stats = SolveStats {
+        iterations,
+        links: links.load(Ordering::Relaxed),
+        elements: last.elements,
+        rays: visibility.rays_traced(),
+        seconds: start.elapsed().as_secs_f64(),
+        unshot_ratio: last.unshot_ratio,
+        emitted_power: emitted,
+        stop_reason: Some(stop),
+        refinement_capped: capped.load(Ordering::Relaxed),
+    };
+    Solution {
+        roots,
+        hierarchies,
+        params,
+        stats,
+        convergence,
+        bases,
+    }
+}
+
+impl Solution {
+    pub fn basis(&self, root: usize) -> &Basis {
+        self.bases.of(self.roots[root].shape)
+    }
+
+    /// Irradiance H at root point `st` (all light, or indirect only when the job asked for it).
+    pub fn irradiance_at(&self, root: usize, st: DVec2) -> Rgb {
+        let r = &self.roots[root];
+        let h = &self.hierarchies[root];
+        let (leaf, local) = h.locate(st, r.shape);
+        let basis = self.basis(root);
+        let total = basis.value(h.coeffs(&h.h, leaf), local);
+        if self.params.indirect_only {
+            let direct = basis.value(h.coeffs(&h.hd, leaf), local);
+            [0, 1, 2].map(|c| total[c] - direct[c])
+        } else {
+            total
+        }
+    }
+
+    /// The requested quantity at root point `st` (radiance `B/pi` or `H/pi`), clamped at 0.
+    pub fn value_at(&self, root: usize, st: DVec2) -> Rgb {
+        let h = self.irradiance_at(root, st);
+        self.quantity_from_irradiance(root, h).map(|v| v.max(0.0))
+    }
+
+    fn quantity_from_irradiance(&self, root: usize, h: Rgb) -> Rgb {
+        let r = &self.roots[root];
+        let pi = std::f64::consts::PI;
+        match self.params.quantity {
+            Quantity::Irradiance => h.map(|x| x / pi),
+            Quantity::Radiance => {
+                let e = if self.params.indirect_only {
+                    [0.0; 3]
+                } else {
+                    r.exitance
+                };
+                [0, 1, 2].map(|c| (e[c] + r.rho[c] * h[c]) / pi)
+            }
+        }
+    }
+
+    /// Mean of the requested quantity over the root's element (an integral: no clamp).
+    pub fn mean_value(&self, root: usize) -> Rgb {
+        let h = &self.hierarchies[root];
+        let total = h.h[0];
+        let mean_h = if self.params.indirect_only {
+            [0, 1, 2].map(|c| total[c] - h.hd[0][c])
+        } else {
+            total
+        };
+        self.quantity_from_irradiance(root, mean_h)
+    }
+
+    /// Mean radiosity B over the root (emission included), W/m^2.
+    pub fn mean_radiosity(&self, root: usize) -> Rgb {
+        let r = &self.roots[root];
+        let h = self.hierarchies[root].h[0];
+        [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
+    }
+}

@@ -1,0 +1,138 @@
+//! Quadrature rules on the reference shapes, weights normalised to sum to 1.
+//!
+//! - Gauss-Legendre on `[0,1]` with `n` points: exact for polynomials of degree `2n - 1`.
+//! - Square `[0,1]^2`: tensor product, exact to degree `2n - 1` per axis.
+//! - Triangle `s,t >= 0, s+t <= 1`: the collapsed (Duffy) product `s = a, t = b (1 - a)` with
+//!   weight `w_a w_b (1 - a)` (times 2 to normalise), exact for total degree `<= 2n - 2`.
+//! Nodes are computed by Newton's method on the Legendre recurrence (no tables to mistype).
+
+use crate::domain::Shape;
+use glam::DVec2;
+
+/// One point of a rule in reference coordinates with its normalised weight.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuadPoint {
+    pub st: DVec2,
+    pub weight: f64,
+}
+
+/// Gauss-Legendre nodes and weights on `[0, 1]` (weights sum to 1), ascending.
+pub fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    assert!(n >= 1, "a Gauss rule needs at least one point");
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        // Initial guess (Tricomi), then Newton on P_n.
+        let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+        let mut dp = 1.0;
+        for _ in 0..100 {
+            let (p, d) = legendre_and_derivative(n, x);
+            dp = d;
+            let dx = p / d;
+            x -= dx;
+            if dx.abs() < 1e-16 {
+                break;
+            }
+        }
+        let (_, d) = legendre_and_derivative(n, x);
+        dp = if d != 0.0 { d } else { dp };
+        let w = 2.0 / ((1.0 - x * x) * dp * dp);
+        out.push(((1.0 - x) * 0.5, w * 0.5));
+    }
+    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out
+}
+
+fn legendre_and_derivative(n: usize, x: f64) -> (f64, f64) {
+    let (mut p0, mut p1) = (1.0, x);
+    if n == 0 {
+        return (1.0, 0.0);
+    }
+    for k in 2..=n {
+        let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+        p0 = p1;
+        p1 = p2;
+    }
+    let d = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+    (p1, d)
+}
+
+/// An `n`-per-axis rule on the given reference shape.
+pub fn rule(shape: Shape, n: usize) -> Vec<QuadPoint> {
+    let g = gauss_legendre(n);
+    let mut out = Vec::with_capacity(n * n);
+    for &(a, wa) in &g {
+        for &(b, wb) in &g {
+            out.push(match shape {
+                Shape::Parallelogram => QuadPoint {
+                    st: DVec2::new(a, b),
+                    weight: wa * wb,
+                },
+                Shape::Triangle => QuadPoint {
+                    st: DVec2::new(a, b * (1.0 - a)),
+                    weight: 2.0 * wa * wb * (1.0 - a),
+                },
+            });
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Exact integral of s^i t^j over the normalised reference shape.
+    fn exact(shape: Shape, i: i32, j: i32) -> f64 {
+        let fact = |n: i32| (1..=n).map(f64::from).product::<f64>();
+        match shape {
+            Shape::Parallelogram => 1.0 / ((i + 1) as f64 * (j + 1) as f64),
+            // int_T s^i t^j = i! j! / (i + j + 2)!, normalised by the area 1/2.
+            Shape::Triangle => 2.0 * fact(i) * fact(j) / fact(i + j + 2),
+        }
+    }
+
+    #[test]
+    fn gauss_legendre_is_exact_to_degree_2n_minus_1() {
+        for n in 1..=8 {
+            let g = gauss_legendre(n);
+            assert!((g.iter().map(|p| p.1).sum::<f64>() - 1.0).abs() < 1e-14);
+            for d in 0..(2 * n) as i32 {
+                let q: f64 = g.iter().map(|(x, w)| w * x.powi(d)).sum();
+                assert!(
+                    (q - 1.0 / (d + 1) as f64).abs() < 1e-13,
+                    "n={n} degree {d}: {q}"
+                );
+            }
+            // And not exact one degree further (the rule is what it says, no more).
+            let d = 2 * n as i32;
+            let q: f64 = g.iter().map(|(x, w)| w * x.powi(d)).sum();
+            assert!((q - 1.0 / (d + 1) as f64).abs() > 1e-12);
+        }
+    }
+
+    #[test]
+    fn shape_rules_integrate_monomials_exactly() {
+        for n in 1..=5 {
+            for shape in [Shape::Parallelogram, Shape::Triangle] {
+                let r = rule(shape, n);
+                let max_total = match shape {
+                    Shape::Parallelogram => 2 * n as i32 - 1,
+                    Shape::Triangle => 2 * n as i32 - 2,
+                };
+                for i in 0..=max_total {
+                    for j in 0..=(max_total - i) {
+                        let q: f64 = r
+                            .iter()
+                            .map(|p| p.weight * p.st.x.powi(i) * p.st.y.powi(j))
+                            .sum();
+                        let e = exact(shape, i, j);
+                        assert!(
+                            (q - e).abs() < 1e-13,
+                            "{shape:?} n={n} s^{i} t^{j}: {q} vs {e}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,138 @@
+//! Analytic oracles for the whole bake path: furnace, parallel squares, closed-enclosure balance.
+
+use glam::DVec3;
+use std::sync::atomic::AtomicBool;
+use wavrad::pipeline::bake;
+use wavrad::scene::gltf_writer::SceneBuilder;
+use wavrad::scene::{load_scene, ExternalFiles};
+use wavrad::solver::SolverParams;
+
+fn params(order: usize) -> SolverParams {
+    SolverParams {
+        order,
+        ..Default::default()
+    }
+}
+
+fn solve_glb(
+    glb: &[u8],
+    p: SolverParams,
+) -> (wavrad::pipeline::Prepared, wavrad::solver::Solution) {
+    let scene = load_scene(glb, &ExternalFiles::Refuse, 1_000_000).expect("scene loads");
+    bake(&scene, p, &AtomicBool::new(false), &mut |_| {}).expect("bakes")
+}
+
+fn furnace_glb(n: u32) -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let m = b.material([0.5; 3], [1.0; 3], false);
+    b.inward_box([m; 6], DVec3::ZERO, DVec3::ONE, n);
+    b.to_glb()
+}
+
+/// Elements here are the scene's triangles (the element roots). Their mean radiance is checked;
+/// sub-elements touching a corner of an emitter carry the quadrature error of the point form
+/// factor's direction-only singularity there (see the solver's notes) and are not held to 1%.
+#[test]
+fn white_furnace_every_element_has_radiance_two() {
+    let shared =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/analytic/furnace.glb");
+    let shared = std::fs::read(shared).expect("tests/data/analytic/furnace.glb");
+    for (name, glb) in [("furnace.glb", shared), ("own 3x3 furnace", furnace_glb(3))] {
+        for order in [1, 2, 3] {
+            let (_, sol) = solve_glb(&glb, params(order));
+            assert!(
+                sol.stats.unshot_ratio <= sol.params.target_unshot,
+                "{name}: unshot {}",
+                sol.stats.unshot_ratio
+            );
+            let mut worst: f64 = 0.0;
+            for i in 0..sol.roots.len() {
+                let mean = sol.mean_value(i);
+                worst = worst.max((mean[0] - 2.0).abs() / 2.0);
+                assert!(
+                    (mean[0] - 2.0).abs() < 0.02,
+                    "{name} M{order}: element {i} mean radiance {mean:?}"
+                );
+            }
+            println!("{name} M{order}: worst element error {:.3}%", worst * 100.0);
+        }
+    }
+}
+
+#[test]
+fn parallel_unit_squares_receiver_mean_is_the_form_factor() {
+    let mut b = SceneBuilder::new();
+    let recv = b.material([1.0; 3], [0.0; 3], false);
+    let emit = b.material([0.0; 3], [1.0; 3], false);
+    b.quad(recv, DVec3::new(-0.5, -0.5, 0.0), DVec3::X, DVec3::Y, 1);
+    b.quad(emit, DVec3::new(-0.5, -0.5, 1.0), DVec3::Y, DVec3::X, 1);
+    for order in [1] {
+        let (_, sol) = solve_glb(&b.to_glb(), params(order));
+        // Receiver: the two triangles with material 0; area-weighted mean radiance.
+        let mut sum = 0.0;
+        let mut area = 0.0;
+        for (i, r) in sol.roots.iter().enumerate() {
+            if r.material == recv {
+                sum += sol.mean_value(i)[0] * r.area_m2;
+                area += r.area_m2;
+            }
+        }
+        let mean = sum / area;
+        println!("M{order}: receiver mean radiance {mean:.6} (exact 0.199825)");
+        assert!(
+            (mean - 0.199825).abs() < 0.02 * 0.199825,
+            "M{order}: {mean}"
+        );
+    }
+}
+
+fn enclosure_balance(rho: f64) {
+    // A closed box (2 x 1 x 1.5) whose ceiling is four quads, one emitting, around a floating block
+    // (outward normals) that adds occlusion.
+    let mut b = SceneBuilder::new();
+    let wall = b.material([rho; 3], [0.0; 3], false);
+    let lamp = b.material([rho; 3], [2.0; 3], false);
+    let (x, y, z) = (DVec3::X * 2.0, DVec3::Y, DVec3::Z * 1.5);
+    let o = DVec3::ZERO;
+    b.quad(wall, o, y, z, 2); // x = 0, normal +x
+    b.quad(wall, o + x, z, y, 2); // x = 2, normal -x
+    b.quad(wall, o, z, x, 2); // floor, normal +y
+    b.quad(lamp, o + y, x * 0.5, z * 0.5, 1); // ceiling quarters, normal -y
+    b.quad(wall, o + y + x * 0.5, x * 0.5, z * 0.5, 1);
+    b.quad(wall, o + y + z * 0.5, x * 0.5, z * 0.5, 1);
+    b.quad(wall, o + y + x * 0.5 + z * 0.5, x * 0.5, z * 0.5, 1);
+    b.quad(wall, o, x, y, 2); // z = 0, normal +z
+    b.quad(wall, o + z, y, x, 2); // z = 1.5, normal -z
+    let c = DVec3::new(0.8, 0.2, 0.5);
+    let (bx, by, bz) = (DVec3::X * 0.4, DVec3::Y * 0.4, DVec3::Z * 0.4);
+    b.quad(wall, c, bz, by, 1); // normal -x
+    b.quad(wall, c + bx, by, bz, 1); // +x
+    b.quad(wall, c, bx, bz, 1); // -y
+    b.quad(wall, c + by, bz, bx, 1); // +y
+    b.quad(wall, c, by, bx, 1); // -z
+    b.quad(wall, c + bz, bx, by, 1); // +z
+    let (_, sol) = solve_glb(&b.to_glb(), params(1));
+    let mut area = 0.0;
+    let mut sum_b = 0.0;
+    let mut emitted = 0.0;
+    for (i, r) in sol.roots.iter().enumerate() {
+        area += r.area_m2;
+        sum_b += sol.mean_radiosity(i)[0] * r.area_m2;
+        emitted += r.exitance[0] * r.area_m2;
+    }
+    let mean = sum_b / area;
+    let expected = emitted / ((1.0 - rho) * area);
+    println!(
+        "rho {rho}: mean B {mean:.5}, expected {expected:.5}, unshot {}",
+        sol.stats.unshot_ratio
+    );
+    assert!(
+        (mean - expected).abs() < 0.01 * expected,
+        "rho {rho}: {mean} vs {expected}"
+    );
+}
+
+#[test]
+fn closed_enclosure_mean_radiosity_balances_emitted_power() {
+    enclosure_balance(0.5);
+}
