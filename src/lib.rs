@@ -4,8 +4,11 @@
 //! Modules in data-flow order; each depends only on those before it (see ARCHITECTURE.md):
 //! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`.
 
+pub mod cli;
 pub mod domain;
 pub mod faces;
+pub mod job;
+pub mod output;
 pub mod pipeline;
 pub mod scene;
 pub mod solver;

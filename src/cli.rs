@@ -1,0 +1,292 @@
+//! The command line (CONTRACT "Command line"): `solve`, `faces`, `serve`.
+//!
+//! Machine output (JSON) goes to stdout only; logs and the progress bar to stderr. Exit codes:
+//! 0 success, 2 bad input or bad options (one-line reason on stderr), 1 internal failure.
+
+use crate::job::{run_job, DomainMode, JobError, JobParams, QuantityParam};
+use crate::scene::{load_scene_from_path, SceneError};
+use clap::{Args, Parser, Subcommand};
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
+
+/// Default limit on triangles per scene (CONTRACT: 5 million).
+pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "wavrad",
+    version,
+    about = "Wavelet radiosity lightmap baker for glTF scenes"
+)]
+pub struct Cli {
+    /// Log format on stderr.
+    #[arg(long, global = true, default_value = "text", value_parser = ["text", "json"])]
+    pub log_format: String,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Solve a scene and write result.json, lightmap.exr and convergence.csv.
+    Solve(SolveArgs),
+    /// Print the planar faces the solver will see.
+    Faces(FacesArgs),
+    /// Run the HTTP service.
+    Serve(ServeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SolveArgs {
+    /// The scene (.glb or .gltf; a .gltf's external buffers are read next to it).
+    pub scene: PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub solver: SolverArgs,
+    /// Print a JSON summary on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Refuse scenes with more triangles.
+    #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
+    pub max_triangles: usize,
+}
+
+/// Solver options, same names as the HTTP job parameters.
+#[derive(Args, Debug, Clone)]
+pub struct SolverArgs {
+    /// Multi-wavelet order: 1 (constant), 2 (linear), 3 (quadratic).
+    #[arg(long, default_value_t = 2)]
+    pub order: usize,
+    /// Extended domains on planar faces, or the tessellated baseline.
+    #[arg(long, default_value = "extended", value_parser = ["extended", "tessellated"])]
+    pub domain: String,
+    /// Stop when unshot power / emitted power <= R.
+    #[arg(long, default_value_t = 1e-3)]
+    pub target_unshot: f64,
+    /// Refinement threshold, as a fraction of the scene's emitted power.
+    #[arg(long, default_value_t = crate::solver::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    /// Wall-time budget in seconds.
+    #[arg(long)]
+    pub max_seconds: Option<f64>,
+    /// Lightmap density (default: chosen from the scene size).
+    #[arg(long)]
+    pub texels_per_meter: Option<f64>,
+    /// What lightmaps and probes hold.
+    #[arg(long, default_value = "radiance", value_parser = ["radiance", "irradiance"])]
+    pub quantity: String,
+    /// Leave out light arriving straight from emitters.
+    #[arg(long)]
+    pub indirect_only: bool,
+    /// Write EXR channels as 32-bit float instead of half.
+    #[arg(long)]
+    pub exr_float: bool,
+}
+
+impl SolverArgs {
+    pub fn job_params(&self) -> JobParams {
+        JobParams {
+            order: self.order,
+            domain: if self.domain == "tessellated" {
+                DomainMode::Tessellated
+            } else {
+                DomainMode::Extended
+            },
+            target_unshot: self.target_unshot,
+            tolerance: self.tolerance,
+            max_seconds: self.max_seconds,
+            texels_per_meter: self.texels_per_meter,
+            quantity: if self.quantity == "irradiance" {
+                QuantityParam::Irradiance
+            } else {
+                QuantityParam::Radiance
+            },
+            indirect_only: self.indirect_only,
+            exr_float: self.exr_float,
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct FacesArgs {
+    pub scene: PathBuf,
+    /// Print the faces as JSON (CONTRACT "faces --json").
+    #[arg(long)]
+    pub json: bool,
+    #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
+    pub max_triangles: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct ServeArgs {
+    #[arg(long, env = "WAVRAD_ADDR", default_value = "127.0.0.1:8080")]
+    pub addr: std::net::SocketAddr,
+    #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "./wavrad-data")]
+    pub data_dir: PathBuf,
+    /// Jobs solved at once (one job uses every core).
+    #[arg(long, env = "WAVRAD_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+    /// Jobs waiting; beyond it POST answers 429.
+    #[arg(long, env = "WAVRAD_MAX_QUEUED", default_value_t = 64)]
+    pub max_queued: usize,
+    /// Largest request body; beyond it 413.
+    #[arg(long, env = "WAVRAD_MAX_BODY_BYTES", default_value_t = 256 * 1024 * 1024)]
+    pub max_body_bytes: usize,
+    /// Largest scene; beyond it 422.
+    #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
+    pub max_triangles: usize,
+}
+
+fn init_logging(format: &str) {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
+    let builder = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr);
+    if format == "json" {
+        let _ = builder.json().try_init();
+    } else {
+        let _ = builder.try_init();
+    }
+}
+
+fn bad_input(message: impl std::fmt::Display) -> ExitCode {
+    eprintln!("wavrad: {message}");
+    ExitCode::from(2)
+}
+
+fn internal(message: impl std::fmt::Display) -> ExitCode {
+    eprintln!("wavrad: internal error: {message}");
+    ExitCode::from(1)
+}
+
+/// Parses the arguments and runs the command; returns the process exit code.
+pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> ExitCode {
+    let cli = match Cli::try_parse_from(args) {
+        Ok(c) => c,
+        Err(e) => {
+            let code = if e.use_stderr() { 2 } else { 0 };
+            let _ = e.print();
+            return ExitCode::from(code);
+        }
+    };
+    init_logging(&cli.log_format);
+    match cli.command {
+        Command::Solve(a) => solve(a),
+        Command::Faces(a) => faces(a),
+        Command::Serve(a) => serve(a),
+    }
+}
+
+fn load(path: &std::path::Path, max_triangles: usize) -> Result<crate::scene::Scene, ExitCode> {
+    load_scene_from_path(path, max_triangles)
+        .map_err(|e: SceneError| bad_input(format!("{}: {e}", path.display())))
+}
+
+fn solve(a: SolveArgs) -> ExitCode {
+    let params = a.solver.job_params();
+    if let Err(e) = params.validate() {
+        return bad_input(e);
+    }
+    let scene = match load(&a.scene, a.max_triangles) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    for w in &scene.warnings {
+        tracing::warn!("{w}");
+    }
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = indicatif::ProgressBar::new(1000);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg}")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        Some(bar)
+    } else {
+        None
+    };
+    let target = params.target_unshot;
+    let mut observe = |p: &crate::solver::Progress| {
+        if let Some(bar) = &bar {
+            // Position on a log scale from 1 down to the target.
+            let done = if p.unshot_ratio > 0.0 {
+                (p.unshot_ratio.ln() / target.ln()).clamp(0.0, 1.0)
+            } else {
+                1.0
+            };
+            bar.set_position((done * 1000.0) as u64);
+            bar.set_message(format!(
+                "shot {} unshot {:.2e} elements {} links {}",
+                p.iterations, p.unshot_ratio, p.elements, p.links
+            ));
+        }
+    };
+    let cancel = AtomicBool::new(false);
+    let outcome = run_job(&scene, &params, &a.out, &cancel, &mut observe);
+    if let Some(bar) = bar {
+        bar.finish_and_clear();
+    }
+    match outcome {
+        Ok(o) => {
+            let stats = &o.result["stats"];
+            tracing::info!(
+                "solved in {:.2} s: {} shots, {} elements, unshot ratio {:.2e} ({}); outputs in {}",
+                stats["seconds"].as_f64().unwrap_or(0.0),
+                stats["iterations"],
+                stats["elements"],
+                stats["unshot_ratio"].as_f64().unwrap_or(0.0),
+                o.stop_reason.as_str(),
+                a.out.display()
+            );
+            if a.json {
+                let summary = serde_json::json!({"out": a.out, "scene": o.result["scene"], "stats": o.result["stats"],
+                    "warnings": o.result["warnings"], "atlas": o.result["atlas"]});
+                println!("{summary}");
+            }
+            ExitCode::SUCCESS
+        }
+        Err(JobError::Scene(e)) => bad_input(format!("{}: {e}", a.scene.display())),
+        Err(e) => internal(e),
+    }
+}
+
+fn faces(a: FacesArgs) -> ExitCode {
+    let scene = match load(&a.scene, a.max_triangles) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    let prepared = crate::pipeline::prepare(&scene);
+    let doc = crate::output::faces_json(&prepared.faces, &prepared.roots);
+    if a.json {
+        println!("{doc}");
+    } else {
+        println!(
+            "{} triangles in, {} degenerate dropped, {} faces out",
+            prepared.faces.triangles_in,
+            prepared.faces.degenerate_dropped,
+            prepared.faces.faces.len()
+        );
+        for f in &prepared.faces.faces {
+            println!(
+                "face {:>6}  material {:>3}  {:<13} area {:.6} m2  holes {}  vertices {}  triangles {}",
+                f.id.0,
+                f.material,
+                f.kind.as_str(),
+                f.area_m2,
+                f.holes.len(),
+                f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
+                f.triangles.len()
+            );
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+fn serve(a: ServeArgs) -> ExitCode {
+    let _ = a;
+    internal("serve is not available in this build")
+}

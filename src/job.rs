@@ -1,0 +1,156 @@
+//! A bake job: validated parameters (the CONTRACT's solver options, same names on the command line
+//! and over HTTP), and `run_job`, which solves a loaded scene and writes every output file.
+//!
+//! Both the CLI (`wavrad solve`) and the service call [`run_job`], so they produce the same files.
+
+use crate::output::{write_outputs, OutputOptions};
+use crate::pipeline::bake;
+use crate::scene::{Scene, SceneError};
+use crate::solver::{Progress, Quantity, SolverParams, StopReason, DEFAULT_TOLERANCE};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+
+/// Where radiosity lives: the paper's extended domains, or the tessellated baseline.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum DomainMode {
+    #[default]
+    Extended,
+    Tessellated,
+}
+
+/// What lightmaps and probes hold (serialisable twin of [`Quantity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum QuantityParam {
+    #[default]
+    Radiance,
+    Irradiance,
+}
+
+/// Job parameters with CONTRACT names and defaults.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct JobParams {
+    pub order: usize,
+    pub domain: DomainMode,
+    pub target_unshot: f64,
+    pub tolerance: f64,
+    pub max_seconds: Option<f64>,
+    pub texels_per_meter: Option<f64>,
+    pub quantity: QuantityParam,
+    pub indirect_only: bool,
+    pub exr_float: bool,
+}
+
+impl Default for JobParams {
+    fn default() -> Self {
+        JobParams {
+            order: 2,
+            domain: DomainMode::Extended,
+            target_unshot: 1e-3,
+            tolerance: DEFAULT_TOLERANCE,
+            max_seconds: None,
+            texels_per_meter: None,
+            quantity: QuantityParam::Radiance,
+            indirect_only: false,
+            exr_float: false,
+        }
+    }
+}
+
+/// Largest lightmap density accepted (texels per metre), to bound atlas memory.
+pub const MAX_TEXELS_PER_METER: f64 = 1e6;
+
+impl JobParams {
+    /// Checks every parameter; the error names the parameter and the accepted range.
+    pub fn validate(&self) -> Result<(), String> {
+        if !(1..=3).contains(&self.order) {
+            return Err(format!("order must be 1, 2 or 3 (got {})", self.order));
+        }
+        if !(self.target_unshot.is_finite() && self.target_unshot > 0.0 && self.target_unshot < 1.0)
+        {
+            return Err(format!(
+                "target_unshot must be in (0, 1) (got {})",
+                self.target_unshot
+            ));
+        }
+        if !(self.tolerance.is_finite() && self.tolerance > 0.0 && self.tolerance < 1.0) {
+            return Err(format!(
+                "tolerance must be in (0, 1) (got {})",
+                self.tolerance
+            ));
+        }
+        if let Some(s) = self.max_seconds {
+            if !(s.is_finite() && s > 0.0) {
+                return Err(format!(
+                    "max_seconds must be a positive number of seconds (got {s})"
+                ));
+            }
+        }
+        if let Some(d) = self.texels_per_meter {
+            if !(d.is_finite() && d > 0.0 && d <= MAX_TEXELS_PER_METER) {
+                return Err(format!(
+                    "texels_per_meter must be in (0, {MAX_TEXELS_PER_METER}] (got {d})"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    pub fn solver_params(&self) -> SolverParams {
+        SolverParams {
+            order: self.order,
+            target_unshot: self.target_unshot,
+            tolerance: self.tolerance,
+            max_seconds: self.max_seconds,
+            quantity: match self.quantity {
+                QuantityParam::Radiance => Quantity::Radiance,
+                QuantityParam::Irradiance => Quantity::Irradiance,
+            },
+            indirect_only: self.indirect_only,
+            ..SolverParams::default()
+        }
+    }
+}
+
+/// Why a job failed.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// The scene cannot be solved (HTTP 422, exit code 2).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Writing outputs failed (HTTP 500, exit code 1).
+    #[error("writing outputs failed: {0}")]
+    Io(#[from] std::io::Error),
+}
+
+/// What a finished job reports.
+#[derive(Debug, Clone)]
+pub struct JobOutcome {
+    /// The full result.json document.
+    pub result: serde_json::Value,
+    pub stop_reason: StopReason,
+}
+
+/// Solves `scene` with `params` and writes result.json, lightmap.exr and convergence.csv to `out_dir`.
+pub fn run_job(
+    scene: &Scene,
+    params: &JobParams,
+    out_dir: &Path,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Result<JobOutcome, JobError> {
+    let (prepared, solution) = bake(scene, params.solver_params(), cancel, observe)?;
+    std::fs::create_dir_all(out_dir)?;
+    let options = OutputOptions {
+        texels_per_meter: params.texels_per_meter,
+        exr_float: params.exr_float,
+    };
+    let result = write_outputs(out_dir, scene, &prepared, &solution, params, &options)?;
+    Ok(JobOutcome {
+        result,
+        stop_reason: solution.stats.stop_reason.unwrap_or(StopReason::Converged),
+    })
+}
