@@ -3,7 +3,8 @@
 //! Machine output (JSON) goes to stdout only; logs and the progress bar to stderr. Exit codes:
 //! 0 success, 2 bad input or bad options (one-line reason on stderr), 1 internal failure.
 
-use crate::job::{run_job, DomainMode, JobError, JobParams, QuantityParam};
+use crate::job::{run_job_with_probes, DomainMode, JobError, JobParams, QuantityParam};
+use crate::output::probes::parse_probes;
 use crate::scene::{load_scene_from_path, SceneError};
 use clap::{Args, Parser, Subcommand};
 use std::io::IsTerminal;
@@ -47,6 +48,9 @@ pub struct SolveArgs {
     pub out: PathBuf,
     #[command(flatten)]
     pub solver: SolverArgs,
+    /// Probe points file (JSON); writes probe_values.json.
+    #[arg(long)]
+    pub probes: Option<PathBuf>,
     /// Print a JSON summary on stdout.
     #[arg(long)]
     pub json: bool,
@@ -192,6 +196,16 @@ fn solve(a: SolveArgs) -> ExitCode {
     if let Err(e) = params.validate() {
         return bad_input(e);
     }
+    let probes = match &a.probes {
+        None => None,
+        Some(path) => match std::fs::read(path)
+            .map_err(|e| e.to_string())
+            .and_then(|b| parse_probes(&b))
+        {
+            Ok(p) => Some(p),
+            Err(e) => return bad_input(format!("{}: {e}", path.display())),
+        },
+    };
     let scene = match load(&a.scene, a.max_triangles) {
         Ok(s) => s,
         Err(code) => return code,
@@ -226,7 +240,14 @@ fn solve(a: SolveArgs) -> ExitCode {
         }
     };
     let cancel = AtomicBool::new(false);
-    let outcome = run_job(&scene, &params, &a.out, &cancel, &mut observe);
+    let outcome = run_job_with_probes(
+        &scene,
+        &params,
+        probes.as_deref(),
+        &a.out,
+        &cancel,
+        &mut observe,
+    );
     if let Some(bar) = bar {
         bar.finish_and_clear();
     }

@@ -3,7 +3,8 @@
 //!
 //! Both the CLI (`wavrad solve`) and the service call [`run_job`], so they produce the same files.
 
-use crate::output::{write_outputs, OutputOptions};
+use crate::output::probes::{evaluate_probes, ProbePoint};
+use crate::output::{write_atomic, write_outputs, OutputOptions};
 use crate::pipeline::bake;
 use crate::scene::{Scene, SceneError};
 use crate::solver::{Progress, Quantity, SolverParams, StopReason, DEFAULT_TOLERANCE};
@@ -142,6 +143,18 @@ pub fn run_job(
     cancel: &AtomicBool,
     observe: &mut dyn FnMut(&Progress),
 ) -> Result<JobOutcome, JobError> {
+    run_job_with_probes(scene, params, None, out_dir, cancel, observe)
+}
+
+/// [`run_job`], plus `probe_values.json` when probes are given.
+pub fn run_job_with_probes(
+    scene: &Scene,
+    params: &JobParams,
+    probes: Option<&[ProbePoint]>,
+    out_dir: &Path,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Result<JobOutcome, JobError> {
     let (prepared, solution) = bake(scene, params.solver_params(), cancel, observe)?;
     std::fs::create_dir_all(out_dir)?;
     let options = OutputOptions {
@@ -149,6 +162,11 @@ pub fn run_job(
         exr_float: params.exr_float,
     };
     let result = write_outputs(out_dir, scene, &prepared, &solution, params, &options)?;
+    if let Some(probes) = probes {
+        let values = evaluate_probes(&solution, probes, prepared.diagonal);
+        let text = serde_json::to_vec_pretty(&values).map_err(std::io::Error::other)?;
+        write_atomic(&out_dir.join("probe_values.json"), &text)?;
+    }
     Ok(JobOutcome {
         result,
         stop_reason: solution.stats.stop_reason.unwrap_or(StopReason::Converged),

@@ -11,4 +11,5 @@ pub mod job;
 pub mod output;
 pub mod pipeline;
 pub mod scene;
+pub mod service;
 pub mod solver;

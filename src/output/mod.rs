@@ -7,6 +7,7 @@
 //! nearest face value and bilinear filtering never bleeds black); alpha is the texel's coverage.
 
 pub mod atlas;
+pub mod probes;
 
 use crate::domain::{ElementRoot, Shape};
 use crate::faces::FaceSet;
@@ -202,6 +203,54 @@ fn write_exr(
     std::fs::rename(&tmp, path)
 }
 
+/// Exposure of the preview: the 99th percentile of covered texel luminance maps to 0.9.
+fn preview_scale(texels: &[[f32; 4]]) -> f32 {
+    let mut lum: Vec<f32> = texels
+        .iter()
+        .filter(|t| t[3] > 0.0)
+        .map(|t| 0.2126 * t[0] + 0.7152 * t[1] + 0.0722 * t[2])
+        .filter(|l| l.is_finite())
+        .collect();
+    if lum.is_empty() {
+        return 1.0;
+    }
+    let k = ((lum.len() - 1) as f64 * 0.99) as usize;
+    let (_, p99, _) = lum.select_nth_unstable_by(k, f32::total_cmp);
+    if *p99 > 0.0 {
+        0.9 / *p99
+    } else {
+        1.0
+    }
+}
+
+/// `preview.png`: the first atlas page, exposed by [`preview_scale`], sRGB-encoded, uncovered texels dimmed.
+pub fn preview_png(texels: &[[f32; 4]], width: u32, height: u32) -> std::io::Result<Vec<u8>> {
+    let scale = preview_scale(texels);
+    let srgb = |x: f32| {
+        let x = (x * scale).clamp(0.0, 1.0);
+        let e = if x <= 0.0031308 {
+            12.92 * x
+        } else {
+            1.055 * x.powf(1.0 / 2.4) - 0.055
+        };
+        (e * 255.0 + 0.5) as u8
+    };
+    let mut data = Vec::with_capacity(texels.len() * 3);
+    for t in texels {
+        let dim = if t[3] > 0.0 { 1.0 } else { 0.25 };
+        data.extend([srgb(t[0] * dim), srgb(t[1] * dim), srgb(t[2] * dim)]);
+    }
+    let mut out = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut out, width, height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(&data).map_err(std::io::Error::other)?;
+    }
+    Ok(out)
+}
+
 /// `convergence.csv`: one row per shot.
 pub fn convergence_csv(rows: &[Progress]) -> String {
     let mut s = String::from("seconds,unshot_ratio,elements,links\n");
@@ -248,6 +297,12 @@ pub fn write_outputs(
         &dir.join("convergence.csv"),
         convergence_csv(&solution.convergence).as_bytes(),
     )?;
+    if let (Some(texels), Some(page)) = (pages.first(), atlas.pages.first()) {
+        write_atomic(
+            &dir.join("preview.png"),
+            &preview_png(texels, page.width, page.height)?,
+        )?;
+    }
     let faces: Vec<Value> = solution
         .roots
         .iter()

@@ -296,11 +296,17 @@ impl ShotContext<'_> {
             ys[l] = sp.point(q.st);
         }
         let ignore = [sroot.face.0, rroot.face.0];
+        let oracle_weight: Rgb = match self.quantity {
+            Quantity::Radiance => rroot.rho,
+            Quantity::Irradiance => [1.0; 3],
+        };
         let mut e_k = [[0.0f64; 3]; 64];
         let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
         let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
         let mut any_visible = false;
         let mut any_blocked = false;
+        // Unoccluded irradiance at the receiver points, sum over channels weighted as the oracle's.
+        let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
             let x = rp.point(q.st);
             rbasis.eval(q.st, &mut psi[k]);
@@ -308,6 +314,12 @@ impl ShotContext<'_> {
             if f_exact <= 0.0 {
                 continue;
             }
+            unoccluded_max = unoccluded_max.max(
+                f_exact
+                    * (0..3)
+                        .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
+                        .sum::<f64>(),
+            );
             let mut fq = 0.0;
             let mut g = [0.0; MAX_FUNCTIONS];
             let mut visible_points = 0usize;
@@ -359,10 +371,7 @@ impl ShotContext<'_> {
         }
 
         // Oracle: received irradiance at the control points against its projection.
-        let weight: Rgb = match self.quantity {
-            Quantity::Radiance => rroot.rho,
-            Quantity::Irradiance => [1.0; 3],
-        };
+        let weight = oracle_weight;
         let mut err: f64 = 0.0;
         for k in 0..rrule.len() {
             let mut e = 0.0;
@@ -374,6 +383,11 @@ impl ShotContext<'_> {
                 e += weight[ch] * (e_k[k][ch] - proj).abs();
             }
             err = err.max(e);
+        }
+        // A shadow boundary crossing the link: the control points cannot see where it runs, so the
+        // whole unoccluded transfer is at stake.
+        if any_visible && any_blocked {
+            err = err.max(unoccluded_max);
         }
         let err = err * rp.area;
         if err > self.threshold {

@@ -1,0 +1,132 @@
+//! Probes: the solution evaluated at user points (CONTRACT "Probe points file").
+//!
+//! A probe is located on the element root whose plane passes within `PROBE_DISTANCE_REL * diagonal`
+//! of the point, whose side's normal agrees with the probe normal, and whose shape contains the
+//! point's projection (within the same tolerance); the nearest such root wins. A point on the back
+//! of a single-sided face gets 0 in radiance (it has no radiosity side there).
+
+use crate::domain::{ElementRoot, Shape};
+use crate::solver::{Quantity, Solution};
+use glam::{DVec2, DVec3};
+use serde::{Deserialize, Serialize};
+
+/// Probes farther than this fraction of the scene diagonal from every surface are not found.
+pub const PROBE_DISTANCE_REL: f64 = 1e-4;
+/// Most probes accepted in one request.
+pub const MAX_PROBES: usize = 1_000_000;
+
+#[derive(Debug, Clone, Deserialize)]
+pub struct ProbePoint {
+    pub p: [f64; 3],
+    pub n: [f64; 3],
+}
+
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct ProbeValue {
+    #[serde(rename = "L")]
+    pub l: Option<[f64; 3]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub face: Option<u32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// Parses and checks a probe points file.
+pub fn parse_probes(bytes: &[u8]) -> Result<Vec<ProbePoint>, String> {
+    let probes: Vec<ProbePoint> = serde_json::from_slice(bytes).map_err(|e| {
+        format!("probe points must be [{{\"p\":[x,y,z],\"n\":[nx,ny,nz]}}, ...]: {e}")
+    })?;
+    if probes.len() > MAX_PROBES {
+        return Err(format!(
+            "{} probes, more than the limit of {MAX_PROBES}",
+            probes.len()
+        ));
+    }
+    for (i, pr) in probes.iter().enumerate() {
+        if pr.p.iter().chain(&pr.n).any(|x| !x.is_finite()) {
+            return Err(format!("probe {i}: coordinates must be finite numbers"));
+        }
+        if DVec3::from(pr.n).length() == 0.0 {
+            return Err(format!("probe {i}: the normal n is zero"));
+        }
+    }
+    Ok(probes)
+}
+
+/// Reference coordinates of `x` in `root`'s frame, with the distance outside its shape.
+fn locate_in(root: &ElementRoot, x: DVec3) -> (DVec2, f64, f64) {
+    let f = &root.frame;
+    let n = root.normal;
+    let plane_distance = n.dot(x - f.origin);
+    let q = x - n * plane_distance - f.origin;
+    // Solve q = s u + t v in the plane (normal equations).
+    let (uu, uv, vv) = (f.u.dot(f.u), f.u.dot(f.v), f.v.dot(f.v));
+    let (qu, qv) = (q.dot(f.u), q.dot(f.v));
+    let det = uu * vv - uv * uv;
+    let s = (qu * vv - qv * uv) / det;
+    let t = (qv * uu - qu * uv) / det;
+    let st = DVec2::new(s, t);
+    let inside = match root.shape {
+        Shape::Parallelogram => st.clamp(DVec2::ZERO, DVec2::ONE),
+        Shape::Triangle => {
+            let c = st.max(DVec2::ZERO);
+            if c.x + c.y <= 1.0 {
+                c
+            } else {
+                let d = 0.5 * (c.x + c.y - 1.0);
+                (c - DVec2::splat(d)).clamp(DVec2::ZERO, DVec2::ONE)
+            }
+        }
+    };
+    let outside = (f.point(inside) - f.point(st)).length();
+    (inside, plane_distance.abs(), outside)
+}
+
+/// Evaluates the requested quantity at every probe.
+pub fn evaluate_probes(
+    solution: &Solution,
+    probes: &[ProbePoint],
+    diagonal: f64,
+) -> Vec<ProbeValue> {
+    let tol = PROBE_DISTANCE_REL * diagonal;
+    probes
+        .iter()
+        .map(|pr| {
+            let x = DVec3::from(pr.p);
+            let n = DVec3::from(pr.n).normalize();
+            let mut best: Option<(f64, usize, DVec2, bool)> = None;
+            for (i, r) in solution.roots.iter().enumerate() {
+                let (st, dist, outside) = locate_in(r, x);
+                if dist > tol || outside > tol {
+                    continue;
+                }
+                let same_side = r.normal.dot(n) > 0.0;
+                let score = dist + outside + if same_side { 0.0 } else { 1.0 * diagonal };
+                if best.is_none_or(|b| score < b.0) {
+                    best = Some((score, i, st, same_side));
+                }
+            }
+            match best {
+                Some((_, i, st, true)) => ProbeValue {
+                    l: Some(solution.value_at(i, st)),
+                    face: Some(solution.roots[i].face.0),
+                    error: None,
+                },
+                // Only the other side of a single-sided face is here: it reflects nothing.
+                Some((_, i, _, false)) => ProbeValue {
+                    l: Some([0.0; 3]),
+                    face: Some(solution.roots[i].face.0),
+                    error: match solution.params.quantity {
+                        Quantity::Irradiance => Some("the back of a single-sided face: its irradiance is not computed in this version".into()),
+                        Quantity::Radiance => None,
+                    },
+                },
+                None => ProbeValue {
+                    l: None,
+                    face: None,
+                    error: Some(format!("no surface within {tol:.3e} m of this point")),
+                },
+            }
+        })
+        .collect()
+}

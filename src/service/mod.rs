@@ -1,0 +1,318 @@
+//! `wavrad serve`: the HTTP job service (CONTRACT "HTTP API (v1)", DESIGN.md section 8).
+//!
+//! - [`app`] builds the router from an [`AppState`]; [`Server`] binds and serves it; [`serve`] does
+//!   both and stops on Ctrl-C or SIGTERM.
+//! - Errors: one type, [`ApiError`], rendered as the CONTRACT's error JSON; extractors are wrapped
+//!   ([`extract`]) and a last middleware rewrites any other error response into that shape.
+//! - Jobs ([`jobs`]): a bounded queue feeding `workers` runners ([`runner`]) that solve on a
+//!   dedicated rayon pool under `catch_unwind`; each job's state lives in a `watch` channel that
+//!   polling (and, later, server-sent events) read.
+//! - Store ([`store`]): one directory per job under `data_dir/jobs/`, every write atomic; the job's
+//!   files are on disk before its 202 is sent.
+//!
+//! Not yet: resuming jobs after a restart, server-sent events, multipart uploads, idempotency
+//! keys, bearer-token auth, `/metrics`, job retention.
+
+pub mod error;
+pub mod extract;
+pub mod jobs;
+pub mod routes;
+pub mod runner;
+pub mod store;
+pub mod time;
+
+pub use error::ApiError;
+pub use jobs::{Job, JobBoard, JobState, JobView, ProgressView};
+pub use store::{FileStore, JobId};
+
+use axum::extract::{DefaultBodyLimit, Request, State};
+use axum::handler::Handler;
+use axum::http::StatusCode;
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use axum::Router;
+use std::future::Future;
+use std::io;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+use tokio::net::TcpListener;
+use tokio::sync::Semaphore;
+use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::timeout::TimeoutLayer;
+use tower_http::trace::TraceLayer;
+
+/// Data directory when none is given (CONTRACT "Names").
+pub const DEFAULT_DATA_DIR: &str = "./wavrad-data";
+/// One job at a time by default: a solve already uses every core.
+pub const DEFAULT_WORKERS: usize = 1;
+/// Enough waiting jobs for a batch of bakes; beyond it clients back off (429) instead of piling up.
+pub const DEFAULT_MAX_QUEUED: usize = 64;
+/// 256 MiB holds a large GLB with data URIs while bounding the memory of one upload.
+pub const DEFAULT_MAX_BODY_BYTES: usize = 256 << 20;
+/// Five million triangles keep a solve's memory and time within one machine's reach.
+pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
+
+/// Seconds a client is told to wait (`Retry-After`) when the queue or the server is full.
+pub const RETRY_AFTER_SECONDS: u64 = 10;
+/// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
+pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
+/// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
+pub const MAX_IN_FLIGHT_REQUESTS: usize = 1024;
+/// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
+pub const MAX_CONCURRENT_UPLOADS: usize = 4;
+
+/// Settings of the service (CONTRACT `wavrad serve` options).
+#[derive(Debug, Clone, PartialEq, Eq)]
+#[non_exhaustive]
+pub struct ServiceConfig {
+    /// Root of the job store (`data_dir/jobs/{id}/`).
+    pub data_dir: PathBuf,
+    /// Jobs solved at once.
+    pub workers: usize,
+    /// Jobs waiting for a worker; one more is refused with 429.
+    pub max_queued: usize,
+    /// Largest request body; larger is refused with 413.
+    pub max_body_bytes: usize,
+    /// Largest scene, in triangles; larger is refused with 422.
+    pub max_triangles: usize,
+}
+
+impl ServiceConfig {
+    /// The defaults with `data_dir`.
+    pub fn new(data_dir: impl Into<PathBuf>) -> Self {
+        ServiceConfig {
+            data_dir: data_dir.into(),
+            workers: DEFAULT_WORKERS,
+            max_queued: DEFAULT_MAX_QUEUED,
+            max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            max_triangles: DEFAULT_MAX_TRIANGLES,
+        }
+    }
+
+    /// Checks the settings; the error names the setting.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.workers == 0 {
+            return Err("--workers must be at least 1".into());
+        }
+        if self.max_queued == 0 {
+            return Err("--max-queued must be at least 1".into());
+        }
+        if self.max_body_bytes == 0 {
+            return Err("--max-body-bytes must be at least 1".into());
+        }
+        if self.max_triangles == 0 {
+            return Err("--max-triangles must be at least 1".into());
+        }
+        Ok(())
+    }
+}
+
+impl Default for ServiceConfig {
+    fn default() -> Self {
+        ServiceConfig::new(DEFAULT_DATA_DIR)
+    }
+}
+
+/// Shared state of the service: configuration, job store, job board, limits. Cheap to clone.
+#[derive(Clone)]
+pub struct AppState {
+    inner: Arc<Shared>,
+}
+
+struct Shared {
+    config: ServiceConfig,
+    store: FileStore,
+    jobs: JobBoard,
+    upload_permits: Semaphore,
+    in_flight: Arc<Semaphore>,
+}
+
+impl AppState {
+    /// Opens the store under `config.data_dir`, builds the solver pool and starts the runners.
+    /// Must be called inside a Tokio runtime (the runners are Tokio tasks).
+    pub fn new(config: ServiceConfig) -> io::Result<AppState> {
+        config
+            .validate()
+            .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
+        if tokio::runtime::Handle::try_current().is_err() {
+            return Err(io::Error::other(
+                "AppState::new must be called inside a Tokio runtime",
+            ));
+        }
+        let store = FileStore::open(&config.data_dir)?;
+        let pool = Arc::new(runner::solver_pool()?);
+        let workers = config.workers;
+        let state = AppState {
+            inner: Arc::new(Shared {
+                jobs: JobBoard::new(config.max_queued),
+                config,
+                store,
+                upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
+                in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
+            }),
+        };
+        runner::spawn_runners(&state, pool, workers);
+        Ok(state)
+    }
+
+    pub fn config(&self) -> &ServiceConfig {
+        &self.inner.config
+    }
+
+    pub fn store(&self) -> &FileStore {
+        &self.inner.store
+    }
+
+    pub fn jobs(&self) -> &JobBoard {
+        &self.inner.jobs
+    }
+
+    pub(crate) fn upload_permits(&self) -> &Semaphore {
+        &self.inner.upload_permits
+    }
+}
+
+impl std::fmt::Debug for AppState {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("AppState")
+            .field("config", &self.inner.config)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The service's router: every route of CONTRACT "HTTP API (v1)" built so far, with limits,
+/// timeouts, panic catching and tracing.
+pub fn app(state: AppState) -> Router {
+    let max_body = state.config().max_body_bytes;
+    Router::new()
+        .route("/healthz", get(routes::healthz))
+        .route(
+            "/v1/jobs",
+            get(routes::list_jobs).post(routes::create_job.layer(DefaultBodyLimit::max(max_body))),
+        )
+        .route(
+            "/v1/jobs/{id}",
+            get(routes::get_job).delete(routes::delete_job),
+        )
+        .route("/v1/jobs/{id}/result", get(routes::get_result))
+        .route("/v1/jobs/{id}/convergence", get(routes::get_convergence))
+        .route("/v1/jobs/{id}/{file}", get(routes::get_file))
+        .fallback(error::route_not_found)
+        .method_not_allowed_fallback(error::method_not_allowed)
+        // Innermost first: the timeout's empty 408 and every other non-JSON error pass through the
+        // normaliser; a panic anywhere inside becomes a JSON 500.
+        .layer(TimeoutLayer::with_status_code(
+            StatusCode::REQUEST_TIMEOUT,
+            REQUEST_TIMEOUT,
+        ))
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            limit_in_flight,
+        ))
+        .layer(middleware::map_response(error::normalize_error_response))
+        .layer(CatchPanicLayer::custom(error::panic_response))
+        .layer(TraceLayer::new_for_http())
+        .with_state(state)
+}
+
+/// Refuses a request with 503 when `MAX_IN_FLIGHT_REQUESTS` are already being handled.
+async fn limit_in_flight(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let Ok(_permit) = state.inner.in_flight.clone().try_acquire_owned() else {
+        return ApiError {
+            retry_after: Some(1),
+            ..ApiError::new(
+                StatusCode::SERVICE_UNAVAILABLE,
+                "server_busy",
+                "the server is handling as many requests as it allows; retry shortly",
+            )
+        }
+        .into_response();
+    };
+    next.run(request).await
+}
+
+/// A bound, not yet serving, service.
+#[derive(Debug)]
+pub struct Server {
+    listener: TcpListener,
+    state: AppState,
+    addr: SocketAddr,
+}
+
+impl Server {
+    /// Starts the state (store, pool, runners) and binds `addr` (port 0 picks a free port).
+    pub async fn bind(config: ServiceConfig, addr: SocketAddr) -> io::Result<Server> {
+        let state = AppState::new(config)?;
+        let listener = TcpListener::bind(addr).await?;
+        let addr = listener.local_addr()?;
+        tracing::info!(%addr, data_dir = %state.config().data_dir.display(), "wavrad serve listening");
+        Ok(Server {
+            listener,
+            state,
+            addr,
+        })
+    }
+
+    /// The address actually bound.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    pub fn state(&self) -> &AppState {
+        &self.state
+    }
+
+    /// Serves until Ctrl-C or SIGTERM, then finishes the requests in progress.
+    pub async fn run(self) -> io::Result<()> {
+        self.run_until(shutdown_signal()).await
+    }
+
+    /// Serves until `shutdown` completes, then finishes the requests in progress.
+    pub async fn run_until(
+        self,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> io::Result<()> {
+        axum::serve(self.listener, app(self.state))
+            .with_graceful_shutdown(shutdown)
+            .await?;
+        tracing::info!("wavrad serve stopped");
+        Ok(())
+    }
+}
+
+/// Binds `addr`, logs the bound address and serves until Ctrl-C or SIGTERM.
+pub async fn serve(config: ServiceConfig, addr: SocketAddr) -> io::Result<()> {
+    Server::bind(config, addr).await?.run().await
+}
+
+/// Completes on Ctrl-C or (Unix) SIGTERM.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        if let Err(e) = tokio::signal::ctrl_c().await {
+            tracing::warn!(error = %e, "cannot listen for Ctrl-C");
+            std::future::pending::<()>().await;
+        }
+    };
+    #[cfg(unix)]
+    let terminate = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut signal) => {
+                signal.recv().await;
+            }
+            Err(e) => {
+                tracing::warn!(error = %e, "cannot listen for SIGTERM");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let terminate = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = terminate => {}
+    }
+    tracing::info!("shutting down: finishing requests in progress");
+}

@@ -1,0 +1,428 @@
+//! Request handlers of the v1 API and `/healthz`.
+
+use super::error::{clip, ApiError};
+use super::extract::{ApiPath, ApiQuery};
+use super::jobs::{Job, JobState, JobView};
+use super::store::{CONVERGENCE_FILE, RESULT_FILE};
+use super::{AppState, RETRY_AFTER_SECONDS};
+use crate::job::JobParams;
+use crate::output::page_file_name;
+use crate::pipeline::check_solvable;
+use crate::scene::{load_scene, ExternalFiles};
+use axum::body::{Body, Bytes};
+use axum::extract::{FromRequest, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use serde::Serialize;
+use std::sync::Arc;
+use std::time::SystemTime;
+
+/// Content types accepted for a scene upload, and what each is.
+const ACCEPTED_SCENE_TYPES: [&str; 4] = [
+    "model/gltf-binary",
+    "application/octet-stream",
+    "model/gltf+json",
+    "application/json",
+];
+
+/// `GET /healthz`.
+pub async fn healthz() -> Json<serde_json::Value> {
+    Json(serde_json::json!({"status": "ok"}))
+}
+
+/// `POST /v1/jobs`: validate parameters and scene, store the job, queue it; 202 with the job.
+pub async fn create_job(
+    State(state): State<AppState>,
+    ApiQuery(params): ApiQuery<JobParams>,
+    request: Request,
+) -> Result<Response, ApiError> {
+    params.validate().map_err(ApiError::bad_parameters)?;
+    check_content_type(request.headers())?;
+    let max_body = state.config().max_body_bytes;
+    if let Some(length) = content_length(request.headers()) {
+        if length > max_body as u64 {
+            return Err(too_large(max_body));
+        }
+    }
+    // Refuse before receiving the body when the queue is already full (checked again on enqueue).
+    if !state.jobs().has_room() {
+        return Err(queue_full(&state));
+    }
+    let _permit = state
+        .upload_permits()
+        .acquire()
+        .await
+        .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
+    let body = match Bytes::from_request(request, &()).await {
+        Ok(body) => body,
+        Err(rejection) if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+            return Err(too_large(max_body));
+        }
+        Err(rejection) => {
+            return Err(ApiError::new(
+                StatusCode::BAD_REQUEST,
+                "body_unreadable",
+                format!(
+                    "the request body could not be read: {}",
+                    rejection.body_text()
+                ),
+            ))
+        }
+    };
+
+    let max_triangles = state.config().max_triangles;
+    let checked = body.clone();
+    tokio::task::spawn_blocking(move || {
+        let scene = load_scene(&checked, &ExternalFiles::Refuse, max_triangles)?;
+        check_solvable(&scene)
+    })
+    .await
+    .map_err(|e| ApiError::internal("the scene check failed", e))??;
+
+    let created = SystemTime::now();
+    let store = state.store().clone();
+    let id = tokio::task::spawn_blocking(move || store.create_job_dir(created))
+        .await
+        .map_err(|e| ApiError::internal("storing the job failed", e))?
+        .map_err(|e| ApiError::internal("storing the job failed", e))?;
+    let job = Arc::new(Job::new(id, created, state.jobs().next_seq(), params));
+    let store = state.store().clone();
+    let stored = job.clone();
+    tokio::task::spawn_blocking(move || {
+        let written = store.write_new_job(&stored.id, &body, &stored.params, &stored.record());
+        if written.is_err() {
+            store.discard(&stored.id);
+        }
+        written
+    })
+    .await
+    .map_err(|e| ApiError::internal("storing the job failed", e))?
+    .map_err(|e| ApiError::internal("storing the job failed", e))?;
+
+    if let Err(job) = state.jobs().enqueue(job.clone()) {
+        let store = state.store().clone();
+        let _ = tokio::task::spawn_blocking(move || store.discard(&job.id)).await;
+        return Err(queue_full(&state));
+    }
+    tracing::info!(job = %job.id, "job accepted");
+    let view = job.view();
+    let mut response = (StatusCode::ACCEPTED, Json(&view)).into_response();
+    if let Ok(location) = HeaderValue::from_str(&view.links.self_) {
+        response.headers_mut().insert(header::LOCATION, location);
+    }
+    Ok(response)
+}
+
+fn check_content_type(headers: &HeaderMap) -> Result<(), ApiError> {
+    let given = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let essence = given
+        .as_deref()
+        .and_then(|v| v.split(';').next())
+        .map(|v| v.trim().to_ascii_lowercase());
+    if let Some(essence) = &essence {
+        if ACCEPTED_SCENE_TYPES.contains(&essence.as_str()) {
+            return Ok(());
+        }
+    }
+    let what = match &given {
+        Some(v) => format!("content type '{}' is not accepted", clip(v, 100)),
+        None => "the request has no Content-Type".to_string(),
+    };
+    Err(ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "unsupported_media_type",
+        format!(
+            "{what}; send the scene as model/gltf-binary (a GLB; also application/octet-stream) or \
+             model/gltf+json (a self-contained glTF with data URIs; also application/json)"
+        ),
+    ))
+}
+
+fn content_length(headers: &HeaderMap) -> Option<u64> {
+    headers
+        .get(header::CONTENT_LENGTH)?
+        .to_str()
+        .ok()?
+        .trim()
+        .parse()
+        .ok()
+}
+
+fn too_large(max_body: usize) -> ApiError {
+    ApiError::new(
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "payload_too_large",
+        format!(
+            "the scene is larger than this server accepts ({max_body} bytes, --max-body-bytes); \
+             simplify it or ask the operator to raise the limit"
+        ),
+    )
+}
+
+fn queue_full(state: &AppState) -> ApiError {
+    ApiError::queue_full(state.jobs().max_queued(), RETRY_AFTER_SECONDS)
+}
+
+/// The answer of `GET /v1/jobs`.
+#[derive(Debug, Serialize)]
+pub struct JobList {
+    pub jobs: Vec<JobView>,
+}
+
+/// `GET /v1/jobs`: every job, newest first.
+pub async fn list_jobs(State(state): State<AppState>) -> Json<JobList> {
+    Json(JobList {
+        jobs: state.jobs().list().iter().map(|j| j.view()).collect(),
+    })
+}
+
+fn find(state: &AppState, id: &str) -> Result<Arc<Job>, ApiError> {
+    state
+        .jobs()
+        .get(id)
+        .ok_or_else(|| ApiError::job_not_found(id))
+}
+
+/// `GET /v1/jobs/{id}`.
+pub async fn get_job(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+) -> Result<Json<JobView>, ApiError> {
+    Ok(Json(find(&state, &id)?.view()))
+}
+
+/// `DELETE /v1/jobs/{id}`: cancels a queued or running job (202 with the job), deletes a finished
+/// one with its files (204).
+pub async fn delete_job(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+) -> Result<Response, ApiError> {
+    let job = find(&state, &id)?;
+    if !job.state().is_finished() {
+        job.request_cancel();
+        if state.jobs().dequeue(&job) {
+            // Still waiting: no runner will see it, so it ends here.
+            job.update(|s| {
+                if s.state != JobState::Queued {
+                    return false;
+                }
+                s.state = JobState::Cancelled;
+                true
+            });
+            let store = state.store().clone();
+            let persisted = job.clone();
+            tokio::task::spawn_blocking(move || persisted.persist(&store))
+                .await
+                .map_err(|e| ApiError::internal("recording the cancellation failed", e))?;
+        }
+        tracing::info!(job = %job.id, "cancel requested");
+        return Ok((StatusCode::ACCEPTED, Json(job.view())).into_response());
+    }
+    let store = state.store().clone();
+    let doomed = job.id.clone();
+    tokio::task::spawn_blocking(move || store.delete_job(&doomed))
+        .await
+        .map_err(|e| ApiError::internal("deleting the job failed", e))?
+        .map_err(|e| ApiError::internal("deleting the job's files failed", e))?;
+    state.jobs().forget(job.id.as_str());
+    tracing::info!(job = %job.id, "job deleted");
+    Ok(StatusCode::NO_CONTENT.into_response())
+}
+
+/// `GET /v1/jobs/{id}/result`: result.json of a succeeded job.
+pub async fn get_result(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+) -> Result<Response, ApiError> {
+    let job = find(&state, &id)?;
+    let job_state = job.state();
+    if job_state != JobState::Succeeded {
+        return Err(ApiError::conflict(
+            "job_not_succeeded",
+            format!(
+                "job {} is {}; its result exists once it has succeeded (poll GET /v1/jobs/{})",
+                job.id,
+                job_state.as_str(),
+                job.id
+            ),
+        ));
+    }
+    let bytes = read_job_file(&state, &job, RESULT_FILE).await?;
+    Ok(file_response(bytes, "application/json"))
+}
+
+/// One row of `GET /v1/jobs/{id}/convergence`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ConvergenceRow {
+    pub seconds: f64,
+    pub unshot_ratio: f64,
+    pub elements: u64,
+    pub links: u64,
+}
+
+/// The answer of `GET /v1/jobs/{id}/convergence`.
+#[derive(Debug, Serialize)]
+pub struct Convergence {
+    pub rows: Vec<ConvergenceRow>,
+}
+
+/// `GET /v1/jobs/{id}/convergence`: convergence.csv as JSON rows.
+pub async fn get_convergence(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+) -> Result<Json<Convergence>, ApiError> {
+    let job = find(&state, &id)?;
+    let job_state = job.state();
+    if !job_state.is_finished() {
+        return Err(ApiError::conflict(
+            "job_not_finished",
+            format!(
+                "job {} is {}; its convergence table is written when it ends (the job's progress \
+                 object shows the latest shot)",
+                job.id,
+                job_state.as_str()
+            ),
+        ));
+    }
+    let bytes = read_job_file(&state, &job, CONVERGENCE_FILE).await?;
+    let rows = parse_convergence(&String::from_utf8_lossy(&bytes))
+        .map_err(|e| ApiError::internal("convergence.csv is malformed", e))?;
+    Ok(Json(Convergence { rows }))
+}
+
+/// Parses `seconds,unshot_ratio,elements,links` rows after the header line.
+pub fn parse_convergence(text: &str) -> Result<Vec<ConvergenceRow>, String> {
+    let mut rows = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let bad = |what: &str| format!("line {}: {what}: '{}'", n + 1, clip(line, 100));
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [seconds, unshot_ratio, elements, links] = fields[..] else {
+            return Err(bad("expected 4 fields"));
+        };
+        rows.push(ConvergenceRow {
+            seconds: seconds.parse().map_err(|_| bad("bad seconds"))?,
+            unshot_ratio: unshot_ratio.parse().map_err(|_| bad("bad unshot_ratio"))?,
+            elements: elements.parse().map_err(|_| bad("bad elements"))?,
+            links: links.parse().map_err(|_| bad("bad links"))?,
+        });
+    }
+    Ok(rows)
+}
+
+/// The downloadable output files of a job (besides result.json) and their content types.
+fn output_file_type(name: &str) -> Option<&'static str> {
+    match name {
+        "preview.png" => return Some("image/png"),
+        "scene.glb" => return Some("model/gltf-binary"),
+        _ => {}
+    }
+    let page: usize = if name == "lightmap.exr" {
+        0
+    } else {
+        name.strip_prefix("lightmap-")?
+            .strip_suffix(".exr")?
+            .parse()
+            .ok()?
+    };
+    // Only the canonical spelling (`lightmap-1.exr`, not `lightmap-01.exr` or `lightmap-0.exr`).
+    (page_file_name(page) == name).then_some("image/x-exr")
+}
+
+/// `GET /v1/jobs/{id}/{file}`: `lightmap.exr`, `lightmap-{n}.exr`, `preview.png`, `scene.glb`.
+pub async fn get_file(
+    State(state): State<AppState>,
+    ApiPath((id, name)): ApiPath<(String, String)>,
+) -> Result<Response, ApiError> {
+    let job = find(&state, &id)?;
+    let Some(content_type) = output_file_type(&name) else {
+        return Err(ApiError::file_not_found(format!(
+            "a job has no '{}'; its files are result, convergence, lightmap.exr, \
+             lightmap-{{n}}.exr (n >= 1), preview.png and scene.glb",
+            clip(&name, 100)
+        )));
+    };
+    let bytes = read_job_file(&state, &job, &name).await?;
+    Ok(file_response(bytes, content_type))
+}
+
+/// Reads an output file of `job`; 404 when it does not exist.
+async fn read_job_file(state: &AppState, job: &Job, name: &str) -> Result<Vec<u8>, ApiError> {
+    let path = state.store().file_path(&job.id, name);
+    match tokio::fs::read(&path).await {
+        Ok(bytes) => Ok(bytes),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let state_now = job.state();
+            let hint = if state_now.is_finished() {
+                format!("this {} job did not write it", state_now.as_str())
+            } else {
+                format!(
+                    "the job is {}; outputs appear when it ends",
+                    state_now.as_str()
+                )
+            };
+            Err(ApiError::file_not_found(format!(
+                "job {} has no {name}: {hint}",
+                job.id
+            )))
+        }
+        Err(e) => Err(ApiError::internal("reading a job file failed", e)),
+    }
+}
+
+fn file_response(bytes: Vec<u8>, content_type: &'static str) -> Response {
+    let mut response = Response::new(Body::from(bytes));
+    response
+        .headers_mut()
+        .insert(header::CONTENT_TYPE, HeaderValue::from_static(content_type));
+    response
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn output_file_names() {
+        assert_eq!(output_file_type("lightmap.exr"), Some("image/x-exr"));
+        assert_eq!(output_file_type("lightmap-3.exr"), Some("image/x-exr"));
+        assert_eq!(output_file_type("lightmap-0.exr"), None);
+        assert_eq!(output_file_type("lightmap-03.exr"), None);
+        assert_eq!(output_file_type("lightmap-+3.exr"), None);
+        assert_eq!(output_file_type("lightmap-.exr"), None);
+        assert_eq!(output_file_type("state.json"), None);
+        assert_eq!(output_file_type("../x"), None);
+        assert_eq!(output_file_type("preview.png"), Some("image/png"));
+    }
+
+    #[test]
+    fn convergence_rows() {
+        let rows = parse_convergence(
+            "seconds,unshot_ratio,elements,links\n0.001000,5.0e-1,12,30\n0.002,1e-3,14,44\n",
+        )
+        .unwrap();
+        assert_eq!(rows.len(), 2);
+        assert_eq!(rows[1].links, 44);
+        assert!(parse_convergence("h\n1,2,3\n").is_err());
+    }
+
+    #[test]
+    fn content_types() {
+        let mut h = HeaderMap::new();
+        assert!(check_content_type(&h).is_err());
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("Model/glTF-Binary; x=1"),
+        );
+        assert!(check_content_type(&h).is_ok());
+        h.insert(header::CONTENT_TYPE, HeaderValue::from_static("text/plain"));
+        let e = check_content_type(&h).unwrap_err();
+        assert_eq!(e.status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
+        assert!(e.message.contains("model/gltf-binary"));
+    }
+}

@@ -1,0 +1,208 @@
+//! Runners: `workers` Tokio tasks that take queued jobs and solve each on a dedicated rayon pool,
+//! so the Tokio threads that answer requests are never the ones solving.
+//!
+//! A solve runs under `catch_unwind` on a pool thread: a panic fails that job (state `failed`, the
+//! panic's text as its error) and never the server. The pool's threads run at a lower scheduling
+//! priority than the request threads, so polling stays responsive while a solve uses every core.
+
+use super::error::{panic_message, ErrorBody};
+use super::jobs::{Job, JobState, ProgressView};
+use super::AppState;
+use crate::job::{run_job, JobError, JobOutcome};
+use crate::scene::{load_scene, ExternalFiles, SceneError};
+use crate::solver::StopReason;
+use std::io;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::Arc;
+use tokio::sync::oneshot;
+
+/// Nice value of the solver threads (Linux): request handling wins the CPU when both want it.
+#[cfg(target_os = "linux")]
+const SOLVER_NICE: libc::c_int = 10;
+
+/// Builds the solver pool: every core, named threads, lower priority.
+pub(crate) fn solver_pool() -> io::Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .thread_name(|i| format!("wavrad-solve-{i}"))
+        .start_handler(|_| lower_thread_priority())
+        .panic_handler(|payload| {
+            // Solves catch their own panics; this only sees a panic outside one.
+            tracing::error!(panic = %panic_message(payload.as_ref()), "solver pool task panicked");
+        })
+        .build()
+        .map_err(io::Error::other)
+}
+
+fn lower_thread_priority() {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: setpriority only reads its integer arguments. On Linux, PRIO_PROCESS with
+        // who = 0 applies to the calling thread alone.
+        let rc = unsafe { libc::setpriority(libc::PRIO_PROCESS as _, 0, SOLVER_NICE) };
+        if rc != 0 {
+            tracing::debug!("could not lower the solver thread's priority");
+        }
+    }
+}
+
+/// Starts `workers` runner tasks on the current Tokio runtime.
+pub(crate) fn spawn_runners(state: &AppState, pool: Arc<rayon::ThreadPool>, workers: usize) {
+    for index in 0..workers {
+        let state = state.clone();
+        let pool = pool.clone();
+        tokio::spawn(async move { runner(state, pool, index).await });
+    }
+}
+
+async fn runner(state: AppState, pool: Arc<rayon::ThreadPool>, index: usize) {
+    loop {
+        let job = state.jobs().next().await;
+        tracing::debug!(runner = index, job = %job.id, "runner took a job");
+        let (done_tx, done_rx) = oneshot::channel::<()>();
+        let task_state = state.clone();
+        let task_job = job.clone();
+        pool.spawn(move || {
+            process(&task_state, &task_job);
+            let _ = done_tx.send(());
+        });
+        if done_rx.await.is_err() {
+            // The pool task ended without signalling: only possible if `process` itself panicked
+            // outside its catch_unwind. Make sure the job does not stay `running`.
+            let failed = job.update(|s| {
+                if s.state.is_finished() {
+                    return false;
+                }
+                s.state = JobState::Failed;
+                s.error = Some(ErrorBody {
+                    code: "internal_error".into(),
+                    message: "the solver task ended unexpectedly; the server log has details"
+                        .into(),
+                });
+                true
+            });
+            if failed {
+                let store = state.store().clone();
+                let job = job.clone();
+                let _ = tokio::task::spawn_blocking(move || job.persist(&store)).await;
+            }
+        }
+    }
+}
+
+/// Runs one job to its end on the calling (pool) thread: queued -> running -> finished, with
+/// state.json written at each step.
+fn process(state: &AppState, job: &Arc<Job>) {
+    let store = state.store();
+    let start = job.update(|s| {
+        if s.state != JobState::Queued {
+            return false;
+        }
+        s.state = if job.cancel_requested() {
+            JobState::Cancelled
+        } else {
+            JobState::Running
+        };
+        true
+    });
+    if !start {
+        return;
+    }
+    job.persist(store);
+    if job.state() != JobState::Running {
+        tracing::info!(job = %job.id, "cancelled before it started");
+        return;
+    }
+    let span = tracing::info_span!("job", id = %job.id);
+    let _enter = span.enter();
+    tracing::info!("solving");
+    let max_triangles = state.config().max_triangles;
+    let outcome = catch_unwind(AssertUnwindSafe(|| solve(state, job, max_triangles)));
+    let finished = match outcome {
+        Ok(Ok(outcome)) => Finished::Solved(outcome),
+        Ok(Err(e)) => Finished::Error(job_error_body(&e)),
+        Err(payload) => {
+            let text = panic_message(payload.as_ref());
+            tracing::error!(panic = %text, "the solver panicked");
+            Finished::Error(ErrorBody {
+                code: "solver_panic".into(),
+                message: format!(
+                    "the solver failed unexpectedly ({text}); this is a bug: please report it with the scene"
+                ),
+            })
+        }
+    };
+    job.update(|s| {
+        match finished {
+            Finished::Solved(outcome) => {
+                s.state = if outcome.stop_reason == StopReason::Cancelled {
+                    JobState::Cancelled
+                } else {
+                    JobState::Succeeded
+                };
+                s.stop_reason = Some(outcome.stop_reason.as_str().to_string());
+                if let Some(p) = final_progress(&outcome.result) {
+                    s.progress = p;
+                }
+            }
+            Finished::Error(body) => {
+                s.state = JobState::Failed;
+                s.error = Some(body);
+            }
+        }
+        true
+    });
+    job.persist(store);
+    tracing::info!(state = job.state().as_str(), "job finished");
+}
+
+enum Finished {
+    Solved(JobOutcome),
+    Error(ErrorBody),
+}
+
+/// Loads the job's scene from its directory (the upload is not kept in memory while queued) and
+/// solves it, writing the outputs next to it.
+fn solve(state: &AppState, job: &Job, max_triangles: usize) -> Result<JobOutcome, JobError> {
+    let store = state.store();
+    let path = store.scene_path(&job.id)?;
+    let bytes = std::fs::read(&path)?;
+    let scene = load_scene(&bytes, &ExternalFiles::Refuse, max_triangles)?;
+    drop(bytes);
+    let dir = store.job_dir(&job.id);
+    run_job(&scene, &job.params, &dir, job.cancel_flag(), &mut |p| {
+        job.set_progress(ProgressView::from(p))
+    })
+}
+
+fn job_error_body(e: &JobError) -> ErrorBody {
+    match e {
+        JobError::Scene(scene) => scene_error_body(scene),
+        JobError::Io(io) => {
+            tracing::error!(error = %io, "job I/O failed");
+            ErrorBody {
+                code: "output_error".into(),
+                message: format!("reading the scene or writing the outputs failed: {io}"),
+            }
+        }
+    }
+}
+
+fn scene_error_body(e: &SceneError) -> ErrorBody {
+    ErrorBody {
+        code: e.code().into(),
+        message: e.to_string(),
+    }
+}
+
+/// The progress object of a finished solve, from result.json's `stats`.
+fn final_progress(result: &serde_json::Value) -> Option<ProgressView> {
+    let stats = result.get("stats")?;
+    Some(ProgressView {
+        unshot_ratio: stats.get("unshot_ratio")?.as_f64()?,
+        iterations: stats.get("iterations")?.as_u64()?,
+        elements: stats.get("elements")?.as_u64()?,
+        links: stats.get("links")?.as_u64()?,
+        seconds: stats.get("seconds")?.as_f64()?,
+        eta_seconds: None,
+    })
+}

@@ -1,0 +1,244 @@
+//! The embedded job store: one directory per job under `data_dir/jobs/{id}/`, plain files, every
+//! write atomic (temporary file, fsync, rename) and the directory fsynced after it changes.
+//!
+//! Layout of a job directory:
+//! - `scene.glb` or `scene.gltf`: the uploaded scene, as received;
+//! - `params.json`: the job parameters, defaults filled in;
+//! - `state.json`: the job's [`JobRecord`](super::jobs::JobRecord), rewritten at every change of state;
+//! - the outputs of [`run_job`](crate::job::run_job): `result.json`, `lightmap*.exr`,
+//!   `convergence.csv`.
+//!
+//! Deleting a job renames its directory into `data_dir/trash/` (atomic: the job is there or it is
+//! not) and removes it from there; whatever a crash leaves in the trash is removed at the next start.
+//!
+//! This is the shape of the `JobStore` interface of DESIGN.md section 8; a database-backed store
+//! would implement the same operations.
+
+use crate::output::write_atomic;
+use serde::Serialize;
+use std::collections::hash_map::RandomState;
+use std::hash::BuildHasher;
+use std::io;
+use std::path::{Path, PathBuf};
+use std::time::SystemTime;
+
+/// File name of the uploaded scene when it is a GLB.
+pub const SCENE_GLB: &str = "scene.glb";
+/// File name of the uploaded scene when it is glTF JSON.
+pub const SCENE_GLTF: &str = "scene.gltf";
+/// The job parameters.
+pub const PARAMS_FILE: &str = "params.json";
+/// The job's state record.
+pub const STATE_FILE: &str = "state.json";
+/// The result document written by a successful solve.
+pub const RESULT_FILE: &str = "result.json";
+/// The per-shot convergence table.
+pub const CONVERGENCE_FILE: &str = "convergence.csv";
+
+/// Attempts at finding an unused job id before giving up (collisions need two jobs in the same
+/// millisecond with the same 20 random bits).
+const ID_ATTEMPTS: usize = 16;
+
+/// A job identifier: 16 lowercase hex digits, the creation time in milliseconds (11 digits, so ids
+/// sort by creation) followed by 20 random bits.
+#[derive(Debug, Clone, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct JobId(String);
+
+impl JobId {
+    fn generate(created: SystemTime) -> JobId {
+        let ms = super::time::unix_millis(created) & 0xfff_ffff_ffff;
+        let random = RandomState::new().hash_one(ms) & 0xf_ffff;
+        JobId(format!("{ms:011x}{random:05x}"))
+    }
+
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+
+    #[cfg(test)]
+    pub(crate) fn for_tests(id: &str) -> JobId {
+        JobId(id.to_string())
+    }
+}
+
+impl std::fmt::Display for JobId {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+/// Which kind of scene file was uploaded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SceneFormat {
+    Glb,
+    Gltf,
+}
+
+impl SceneFormat {
+    /// GLB when the bytes start with the GLB magic, glTF JSON otherwise.
+    pub fn sniff(bytes: &[u8]) -> SceneFormat {
+        if bytes.starts_with(b"glTF") {
+            SceneFormat::Glb
+        } else {
+            SceneFormat::Gltf
+        }
+    }
+
+    pub fn file_name(self) -> &'static str {
+        match self {
+            SceneFormat::Glb => SCENE_GLB,
+            SceneFormat::Gltf => SCENE_GLTF,
+        }
+    }
+}
+
+/// The job directories under a data directory.
+#[derive(Debug, Clone)]
+pub struct FileStore {
+    jobs: PathBuf,
+    trash: PathBuf,
+}
+
+impl FileStore {
+    /// Creates `data_dir/jobs` and `data_dir/trash` as needed and empties the trash.
+    pub fn open(data_dir: &Path) -> io::Result<FileStore> {
+        let store = FileStore {
+            jobs: data_dir.join("jobs"),
+            trash: data_dir.join("trash"),
+        };
+        std::fs::create_dir_all(&store.jobs)?;
+        std::fs::create_dir_all(&store.trash)?;
+        for entry in std::fs::read_dir(&store.trash)? {
+            let path = entry?.path();
+            if let Err(e) = std::fs::remove_dir_all(&path) {
+                tracing::warn!(path = %path.display(), error = %e, "could not empty the trash");
+            }
+        }
+        Ok(store)
+    }
+
+    /// The directory of job `id` (it may not exist).
+    pub fn job_dir(&self, id: &JobId) -> PathBuf {
+        self.jobs.join(id.as_str())
+    }
+
+    /// Allocates a fresh id and creates its empty directory.
+    pub fn create_job_dir(&self, created: SystemTime) -> io::Result<JobId> {
+        for _ in 0..ID_ATTEMPTS {
+            let id = JobId::generate(created);
+            match std::fs::create_dir(self.job_dir(&id)) {
+                Ok(()) => {
+                    sync_dir(&self.jobs)?;
+                    return Ok(id);
+                }
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists => continue,
+                Err(e) => return Err(e),
+            }
+        }
+        Err(io::Error::other("could not find an unused job id"))
+    }
+
+    /// Writes the files of a new job into its (existing) directory: scene, parameters, state.
+    pub fn write_new_job(
+        &self,
+        id: &JobId,
+        scene: &[u8],
+        params: &impl Serialize,
+        state: &impl Serialize,
+    ) -> io::Result<()> {
+        let dir = self.job_dir(id);
+        write_atomic(&dir.join(SceneFormat::sniff(scene).file_name()), scene)?;
+        write_atomic(&dir.join(PARAMS_FILE), &to_json(params)?)?;
+        write_atomic(&dir.join(STATE_FILE), &to_json(state)?)?;
+        sync_dir(&dir)
+    }
+
+    /// Rewrites `state.json` of job `id`.
+    pub fn write_state(&self, id: &JobId, state: &impl Serialize) -> io::Result<()> {
+        let dir = self.job_dir(id);
+        write_atomic(&dir.join(STATE_FILE), &to_json(state)?)?;
+        sync_dir(&dir)
+    }
+
+    /// Path of the uploaded scene of job `id`.
+    pub fn scene_path(&self, id: &JobId) -> io::Result<PathBuf> {
+        let dir = self.job_dir(id);
+        [SCENE_GLB, SCENE_GLTF]
+            .iter()
+            .map(|name| dir.join(name))
+            .find(|p| p.is_file())
+            .ok_or_else(|| {
+                io::Error::new(
+                    io::ErrorKind::NotFound,
+                    format!("job {id} has no scene file in {}", dir.display()),
+                )
+            })
+    }
+
+    /// Path of an output file `name` (a plain file name, never a path) of job `id`.
+    pub fn file_path(&self, id: &JobId, name: &str) -> PathBuf {
+        self.job_dir(id).join(name)
+    }
+
+    /// Moves the job's directory to the trash (atomic), then removes it. A job directory that is
+    /// already gone is not an error.
+    pub fn delete_job(&self, id: &JobId) -> io::Result<()> {
+        let dir = self.job_dir(id);
+        let tombstone = self.trash.join(id.as_str());
+        match std::fs::rename(&dir, &tombstone) {
+            Ok(()) => {
+                sync_dir(&self.jobs)?;
+                std::fs::remove_dir_all(&tombstone)
+            }
+            Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+            Err(e) => {
+                tracing::warn!(job = %id, error = %e, "rename to trash failed; removing in place");
+                std::fs::remove_dir_all(&dir)
+            }
+        }
+    }
+
+    /// Removes a job directory that never became a job (a failed or refused submission).
+    pub fn discard(&self, id: &JobId) {
+        if let Err(e) = std::fs::remove_dir_all(self.job_dir(id)) {
+            tracing::warn!(job = %id, error = %e, "could not remove an abandoned job directory");
+        }
+    }
+}
+
+fn to_json(value: &impl Serialize) -> io::Result<Vec<u8>> {
+    serde_json::to_vec_pretty(value).map_err(io::Error::other)
+}
+
+/// Makes a directory's entries (new, renamed files) durable.
+fn sync_dir(dir: &Path) -> io::Result<()> {
+    #[cfg(unix)]
+    {
+        std::fs::File::open(dir)?.sync_all()
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ids_sort_by_creation_and_are_hex() {
+        let a = JobId::generate(super::super::time::from_unix_millis(1_700_000_000_000));
+        let b = JobId::generate(super::super::time::from_unix_millis(1_700_000_000_001));
+        assert_eq!(a.as_str().len(), 16);
+        assert!(a.as_str().bytes().all(|c| c.is_ascii_hexdigit()));
+        assert!(a < b);
+    }
+
+    #[test]
+    fn sniffs_glb_magic() {
+        assert_eq!(SceneFormat::sniff(b"glTF\x02\0\0\0"), SceneFormat::Glb);
+        assert_eq!(SceneFormat::sniff(b"{\"asset\":{}}"), SceneFormat::Gltf);
+    }
+}

@@ -1,0 +1,699 @@
+//! The HTTP service over a real socket: submit, poll, download, refuse bad input, limits, cancel.
+
+use base64::Engine;
+use glam::DVec3;
+use reqwest::{Client, StatusCode};
+use serde_json::{json, Value};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
+use wavrad::service::{Server, ServiceConfig};
+
+/// A fresh, empty data directory for one test.
+fn data_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("http-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// Starts a server on 127.0.0.1 port 0; returns its base URL.
+async fn start(config: ServiceConfig) -> String {
+    let server = Server::bind(config, "127.0.0.1:0".parse().unwrap())
+        .await
+        .expect("server binds");
+    let base = format!("http://{}", server.local_addr());
+    tokio::spawn(server.run_until(std::future::pending()));
+    base
+}
+
+fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(30))
+        .build()
+        .unwrap()
+}
+
+/// A unit box seen from inside, one quad per side, rho 0.5, the -x wall emitting.
+fn small_scene(rho: f64) -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let wall = b.material([rho; 3], [0.0; 3], false);
+    let lamp = b.material([rho; 3], [1.0; 3], false);
+    b.inward_box(
+        [lamp, wall, wall, wall, wall, wall],
+        DVec3::ZERO,
+        DVec3::ONE,
+        1,
+    );
+    b.to_glb()
+}
+
+/// A closed box of white walls (rho = 1): no light is ever absorbed, so the solve never converges
+/// and runs until cancelled or its time budget ends.
+fn never_converging_scene() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let wall = b.material([1.0; 3], [0.0; 3], false);
+    let lamp = b.material([1.0; 3], [1.0; 3], false);
+    b.inward_box(
+        [lamp, wall, wall, wall, wall, wall],
+        DVec3::ZERO,
+        DVec3::ONE,
+        3,
+    );
+    b.to_glb()
+}
+
+async fn submit(
+    client: &Client,
+    base: &str,
+    query: &str,
+    content_type: &str,
+    body: Vec<u8>,
+) -> reqwest::Response {
+    client
+        .post(format!("{base}/v1/jobs?{query}"))
+        .header("content-type", content_type)
+        .body(body)
+        .send()
+        .await
+        .expect("POST /v1/jobs answers")
+}
+
+/// Submits a GLB and expects 202; returns the job document.
+async fn submit_ok(client: &Client, base: &str, query: &str, glb: Vec<u8>) -> Value {
+    let response = submit(client, base, query, "model/gltf-binary", glb).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let location = response
+        .headers()
+        .get("location")
+        .expect("Location header")
+        .to_str()
+        .unwrap()
+        .to_string();
+    let job: Value = response.json().await.unwrap();
+    assert_eq!(
+        location,
+        format!("/v1/jobs/{}", job["id"].as_str().unwrap())
+    );
+    job
+}
+
+async fn get_job(client: &Client, base: &str, id: &str) -> Value {
+    let response = client
+        .get(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    response.json().await.unwrap()
+}
+
+/// Polls the job until its state is `state`; panics after `timeout`.
+async fn wait_for(client: &Client, base: &str, id: &str, state: &str, timeout: Duration) -> Value {
+    let start = Instant::now();
+    loop {
+        let job = get_job(client, base, id).await;
+        if job["state"] == state {
+            return job;
+        }
+        assert!(
+            start.elapsed() < timeout,
+            "job {id} is {} after {timeout:?}, expected {state}: {job}",
+            job["state"]
+        );
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+/// Checks the CONTRACT error shape and returns the error object.
+async fn error_of(response: reqwest::Response, status: StatusCode) -> Value {
+    assert_eq!(response.status(), status);
+    assert!(
+        response
+            .headers()
+            .get("content-type")
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| v.starts_with("application/json")),
+        "error responses are JSON"
+    );
+    let body: Value = response.json().await.unwrap();
+    let error = body["error"].clone();
+    let code = error["code"].as_str().expect("error.code");
+    assert!(
+        !code.is_empty() && code.bytes().all(|c| c.is_ascii_lowercase() || c == b'_'),
+        "snake_case code: {code}"
+    );
+    assert!(
+        !error["message"].as_str().expect("error.message").is_empty(),
+        "non-empty message"
+    );
+    error
+}
+
+/// Reads an EXR from bytes; checks the size and that every value is finite and non-negative.
+fn check_exr(bytes: &[u8]) -> (usize, usize) {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |size: Vec2<usize>, _: &RgbaChannels| {
+                (size, Vec::<[f32; 4]>::with_capacity(size.area()))
+            },
+            |pixels: &mut (Vec2<usize>, Vec<[f32; 4]>),
+             _pos: Vec2<usize>,
+             (r, g, b, a): (f32, f32, f32, f32)| { pixels.1.push([r, g, b, a]) },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes.to_vec()))
+        .expect("a readable EXR");
+    let (size, pixels) = &image.layer_data.channel_data.pixels;
+    assert!(size.width() > 0 && size.height() > 0);
+    assert_eq!(pixels.len(), size.area());
+    for p in pixels {
+        assert!(p.iter().all(|v| v.is_finite() && *v >= 0.0), "texel {p:?}");
+    }
+    assert!(
+        pixels.iter().any(|p| p[0] > 0.0),
+        "a lit box has some light in its lightmap"
+    );
+    (size.width(), size.height())
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
+    let dir = data_dir("solve");
+    let base = start(ServiceConfig::new(&dir)).await;
+    let client = client();
+
+    let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert_eq!(health.status(), StatusCode::OK);
+    assert_eq!(
+        health.json::<Value>().await.unwrap(),
+        json!({"status": "ok"})
+    );
+
+    let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    assert!(job["state"] == "queued" || job["state"] == "running");
+    assert_eq!(job["params"]["order"], 1);
+    let created = job["created"].as_str().unwrap();
+    assert!(
+        created.ends_with('Z') && created.len() == 24,
+        "RFC 3339 UTC: {created}"
+    );
+    for key in ["unshot_ratio", "iterations", "elements", "links", "seconds"] {
+        assert!(job["progress"][key].is_number(), "progress.{key}");
+    }
+    assert!(job["progress"]["eta_seconds"].is_null());
+
+    // The job's files are on disk before the 202.
+    let job_dir = dir.join("jobs").join(&id);
+    for file in ["scene.glb", "params.json", "state.json"] {
+        assert!(
+            job_dir.join(file).is_file(),
+            "{file} written before the 202"
+        );
+    }
+    let params: Value =
+        serde_json::from_slice(&std::fs::read(job_dir.join("params.json")).unwrap()).unwrap();
+    assert_eq!(params["order"], 1);
+
+    let done = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+    assert!(done.get("error").is_none());
+    assert_eq!(done["stop_reason"], "converged");
+    assert!(done["progress"]["iterations"].as_u64().unwrap() > 0);
+    assert_eq!(done["links"]["self"], format!("/v1/jobs/{id}"));
+
+    let result = client
+        .get(format!("{base}/v1/jobs/{id}/result"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(result.status(), StatusCode::OK);
+    let result: Value = result.json().await.unwrap();
+    assert_eq!(result["scene"]["triangles"], 12);
+    assert_eq!(result["params"]["order"], 1);
+    let page = &result["atlas"]["pages"][0];
+    assert_eq!(page["file"], "lightmap.exr");
+
+    let exr = client
+        .get(format!("{base}/v1/jobs/{id}/lightmap.exr"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(exr.status(), StatusCode::OK);
+    assert_eq!(exr.headers()["content-type"], "image/x-exr");
+    let (w, h) = check_exr(&exr.bytes().await.unwrap());
+    assert_eq!(
+        (w as u64, h as u64),
+        (
+            page["width"].as_u64().unwrap(),
+            page["height"].as_u64().unwrap()
+        )
+    );
+
+    let missing = client
+        .get(format!("{base}/v1/jobs/{id}/lightmap-7.exr"))
+        .send()
+        .await
+        .unwrap();
+    error_of(missing, StatusCode::NOT_FOUND).await;
+
+    let convergence: Value = client
+        .get(format!("{base}/v1/jobs/{id}/convergence"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let rows = convergence["rows"].as_array().unwrap();
+    assert!(!rows.is_empty());
+    for key in ["seconds", "unshot_ratio", "elements", "links"] {
+        assert!(rows[0][key].is_number(), "row.{key}");
+    }
+
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"][0]["id"], id.as_str());
+
+    // A finished job is deleted with its files.
+    let deleted = client
+        .delete(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(deleted.status(), StatusCode::NO_CONTENT);
+    let gone = client
+        .get(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    error_of(gone, StatusCode::NOT_FOUND).await;
+    assert!(!job_dir.exists(), "the job's directory is gone");
+}
+
+/// One emitting triangle as glTF JSON (buffer without a URI) and its buffer: positions (3 x VEC3 f32) then indices (3 x u32).
+fn one_triangle_gltf(positions: [[f32; 3]; 3], indices: [u32; 3]) -> (Value, Vec<u8>) {
+    let mut bin = Vec::new();
+    for p in positions {
+        for c in p {
+            bin.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    for i in indices {
+        bin.extend_from_slice(&i.to_le_bytes());
+    }
+    let root = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+        "materials": [{"emissiveFactor": [1.0, 1.0, 1.0]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5125, "count": 3, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 12}
+        ],
+        "buffers": [{"byteLength": 48}]
+    });
+    (root, bin)
+}
+
+const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bad_scenes_are_refused_and_the_server_keeps_working() {
+    let base = start(ServiceConfig::new(data_dir("bad"))).await;
+    let client = client();
+
+    // A GLB cut in half.
+    let glb = small_scene(0.5);
+    let truncated = glb[..glb.len() / 2].to_vec();
+    let response = submit(&client, &base, "order=1", "model/gltf-binary", truncated).await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(error["code"], "unreadable_scene");
+
+    // glTF JSON whose index buffer points past the vertices.
+    let (mut root, bin) = one_triangle_gltf(TRIANGLE, [0, 1, 5]);
+    root["buffers"][0]["uri"] = json!(format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    ));
+    let body = serde_json::to_vec(&root).unwrap();
+    let response = submit(&client, &base, "order=1", "model/gltf+json", body).await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(error["code"], "invalid_scene");
+    assert!(
+        error["message"].as_str().unwrap().contains("out of range"),
+        "{error}"
+    );
+
+    // A GLB with a NaN vertex position.
+    let mut nan = TRIANGLE;
+    nan[1][1] = f32::NAN;
+    let (root, bin) = one_triangle_gltf(nan, [0, 1, 2]);
+    let response = submit(
+        &client,
+        &base,
+        "",
+        "model/gltf-binary",
+        glb_from_parts(&root, &bin),
+    )
+    .await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(error["code"], "invalid_scene");
+    assert!(
+        error["message"].as_str().unwrap().contains("NaN"),
+        "{error}"
+    );
+
+    // The same triangle without the NaN is fine (so it was the NaN that was refused).
+    let (root, bin) = one_triangle_gltf(TRIANGLE, [0, 1, 2]);
+    let ok = submit(
+        &client,
+        &base,
+        "order=1",
+        "model/gltf-binary",
+        glb_from_parts(&root, &bin),
+    )
+    .await;
+    assert_eq!(ok.status(), StatusCode::ACCEPTED);
+
+    // Nothing refused was stored or listed.
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
+
+    let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert_eq!(health.status(), StatusCode::OK);
+    let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    wait_for(
+        &client,
+        &base,
+        job["id"].as_str().unwrap(),
+        "succeeded",
+        Duration::from_secs(60),
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn requests_outside_the_contract_get_error_json() {
+    let mut config = ServiceConfig::new(data_dir("errors"));
+    config.max_body_bytes = 1024;
+    let base = start(config).await;
+    let client = client();
+
+    let response = client
+        .get(format!("{base}/v1/jobs/0123456789abcdef"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        error_of(response, StatusCode::NOT_FOUND).await["code"],
+        "job_not_found"
+    );
+    for path in ["result", "convergence", "lightmap.exr"] {
+        let response = client
+            .get(format!("{base}/v1/jobs/nope/{path}"))
+            .send()
+            .await
+            .unwrap();
+        error_of(response, StatusCode::NOT_FOUND).await;
+    }
+    let response = client
+        .delete(format!("{base}/v1/jobs/nope"))
+        .send()
+        .await
+        .unwrap();
+    error_of(response, StatusCode::NOT_FOUND).await;
+
+    let response = client
+        .get(format!("{base}/no/such/route"))
+        .send()
+        .await
+        .unwrap();
+    error_of(response, StatusCode::NOT_FOUND).await;
+    let response = client.put(format!("{base}/v1/jobs")).send().await.unwrap();
+    error_of(response, StatusCode::METHOD_NOT_ALLOWED).await;
+
+    let tiny = vec![0u8; 16];
+    let response = submit(&client, &base, "order=1", "text/plain", tiny.clone()).await;
+    let error = error_of(response, StatusCode::UNSUPPORTED_MEDIA_TYPE).await;
+    let message = error["message"].as_str().unwrap();
+    assert!(
+        message.contains("model/gltf-binary") && message.contains("model/gltf+json"),
+        "{message}"
+    );
+    let response = client
+        .post(format!("{base}/v1/jobs"))
+        .body(tiny.clone())
+        .send()
+        .await
+        .unwrap();
+    error_of(response, StatusCode::UNSUPPORTED_MEDIA_TYPE).await;
+
+    for query in [
+        "order=7",
+        "order=two",
+        "frobnicate=1",
+        "target_unshot=0",
+        "quantity=lux",
+        "max_seconds=-1",
+    ] {
+        let response = submit(&client, &base, query, "model/gltf-binary", tiny.clone()).await;
+        let error = error_of(response, StatusCode::BAD_REQUEST).await;
+        assert_eq!(error["code"], "bad_parameters", "{query}");
+    }
+    let response = submit(&client, &base, "order=7", "model/gltf-binary", tiny.clone()).await;
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    assert!(error["message"].as_str().unwrap().contains("order"));
+
+    let big = small_scene(0.5);
+    assert!(big.len() > 1024);
+    let response = submit(&client, &base, "order=1", "model/gltf-binary", big).await;
+    assert_eq!(
+        error_of(response, StatusCode::PAYLOAD_TOO_LARGE).await["code"],
+        "payload_too_large"
+    );
+
+    let response = submit(&client, &base, "", "model/gltf-binary", Vec::new()).await;
+    error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+
+    // Still alive and empty.
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list, json!({"jobs": []}));
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_queue_refuses_and_cancelled_jobs_end() {
+    let mut config = ServiceConfig::new(data_dir("queue"));
+    config.workers = 1;
+    config.max_queued = 1;
+    let base = start(config).await;
+    let client = client();
+
+    // The single worker is held by a solve that cannot converge (30 s budget as a backstop).
+    let busy = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=30",
+        never_converging_scene(),
+    )
+    .await;
+    let busy_id = busy["id"].as_str().unwrap().to_string();
+    wait_for(&client, &base, &busy_id, "running", Duration::from_secs(10)).await;
+
+    // Polling stays responsive while the solve uses every core.
+    let polls = Instant::now();
+    for _ in 0..10 {
+        get_job(&client, &base, &busy_id).await;
+    }
+    assert!(
+        polls.elapsed() < Duration::from_secs(2),
+        "10 polls took {:?}",
+        polls.elapsed()
+    );
+
+    // One job may wait; the next is refused.
+    let waiting = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    assert_eq!(waiting["state"], "queued");
+    let waiting_id = waiting["id"].as_str().unwrap().to_string();
+    let refused = submit(
+        &client,
+        &base,
+        "order=1",
+        "model/gltf-binary",
+        small_scene(0.5),
+    )
+    .await;
+    let retry_after: u64 = refused.headers()["retry-after"]
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(retry_after > 0);
+    assert_eq!(
+        error_of(refused, StatusCode::TOO_MANY_REQUESTS).await["code"],
+        "queue_full"
+    );
+
+    // Cancelling the waiting job ends it at once and frees its place.
+    let response = client
+        .delete(format!("{base}/v1/jobs/{waiting_id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let cancelled: Value = response.json().await.unwrap();
+    assert_eq!(cancelled["state"], "cancelled");
+    assert_eq!(
+        get_job(&client, &base, &waiting_id).await["state"],
+        "cancelled"
+    );
+    let result = client
+        .get(format!("{base}/v1/jobs/{waiting_id}/result"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        error_of(result, StatusCode::CONFLICT).await["code"],
+        "job_not_succeeded"
+    );
+
+    let next = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let next_id = next["id"].as_str().unwrap().to_string();
+
+    // Cancelling the running job stops it within the CONTRACT's 2 seconds (plus polling slack).
+    let progress = get_job(&client, &base, &busy_id).await["progress"]["iterations"]
+        .as_u64()
+        .unwrap();
+    assert!(progress > 0, "the busy job has been shooting");
+    let response = client
+        .delete(format!("{base}/v1/jobs/{busy_id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    wait_for(
+        &client,
+        &base,
+        &busy_id,
+        "cancelled",
+        Duration::from_secs(3),
+    )
+    .await;
+
+    // The worker is free again: the queued job runs.
+    wait_for(
+        &client,
+        &base,
+        &next_id,
+        "succeeded",
+        Duration::from_secs(60),
+    )
+    .await;
+
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let ids: Vec<&str> = list["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|j| j["id"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        ids,
+        vec![next_id.as_str(), waiting_id.as_str(), busy_id.as_str()],
+        "newest first"
+    );
+}
+
+/// A chunked upload has no Content-Length: the limit is enforced while reading, still as JSON 413.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_oversized_chunked_upload_is_refused() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let mut config = ServiceConfig::new(data_dir("chunked"));
+    config.max_body_bytes = 1024;
+    let base = start(config).await;
+    let addr = base.trim_start_matches("http://");
+    let mut stream = tokio::net::TcpStream::connect(addr).await.unwrap();
+    let mut request = format!(
+        "POST /v1/jobs?order=1 HTTP/1.1\r\nHost: {addr}\r\nContent-Type: model/gltf-binary\r\n\
+         Transfer-Encoding: chunked\r\nConnection: close\r\n\r\n1000\r\n"
+    )
+    .into_bytes();
+    request.extend(std::iter::repeat_n(b'x', 0x1000));
+    request.extend_from_slice(b"\r\n0\r\n\r\n");
+    stream.write_all(&request).await.unwrap();
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(10), stream.read_to_end(&mut answer))
+        .await
+        .expect("the server answers")
+        .unwrap();
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    let body = &answer[answer.find("\r\n\r\n").unwrap() + 4..];
+    let body: Value = serde_json::from_str(body).unwrap();
+    assert_eq!(body["error"]["code"], "payload_too_large");
+}
+
+/// The OpenAPI document names every route the service answers.
+#[test]
+fn openapi_describes_every_route() {
+    let doc =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.yaml")).unwrap();
+    assert!(doc.starts_with("openapi: 3.1"));
+    for path in [
+        "/healthz:",
+        "/v1/jobs:",
+        "/v1/jobs/{id}:",
+        "/v1/jobs/{id}/result:",
+        "/v1/jobs/{id}/convergence:",
+        "/v1/jobs/{id}/lightmap.exr:",
+        "/v1/jobs/{id}/lightmap-{n}.exr:",
+    ] {
+        assert!(
+            doc.contains(&format!("\n  {path}\n")),
+            "{path} is documented"
+        );
+    }
+    for schema in ["Job:", "Progress:", "Error:"] {
+        assert!(
+            doc.contains(&format!("\n    {schema}\n")),
+            "schema {schema}"
+        );
+    }
+}

@@ -1,0 +1,283 @@
+//! Scene import on good and bad files: every bad file is refused with a message naming the place,
+//! never a panic; the CLI maps refusals to exit code 2.
+
+use glam::DVec3;
+use serde_json::{json, Value};
+use std::process::Command;
+use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
+use wavrad::scene::{load_scene, ExternalFiles, SceneError};
+
+const LIMIT: usize = 1_000_000;
+
+fn one_quad_glb() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let m = b.material([0.5; 3], [1.0; 3], false);
+    b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+    b.to_glb()
+}
+
+/// Splits a GLB into its JSON document and binary chunk.
+fn glb_parts(glb: &[u8]) -> (Value, Vec<u8>) {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let doc: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let bin = if glb.len() > 20 + json_len {
+        glb[28 + json_len..].to_vec()
+    } else {
+        Vec::new()
+    };
+    (doc, bin)
+}
+
+fn message(e: &SceneError) -> String {
+    e.to_string()
+}
+
+#[test]
+fn a_good_glb_loads_with_its_materials() {
+    let scene = load_scene(&one_quad_glb(), &ExternalFiles::Refuse, LIMIT).expect("loads");
+    assert_eq!(scene.triangles.len(), 2);
+    assert_eq!(scene.materials[0].rho, [0.5; 3]);
+    assert_eq!(scene.materials[0].emission, [1.0; 3]);
+    // Front normal is u x v = +z.
+    assert!(scene.triangles[0].cross().normalize().dot(DVec3::Z) > 0.999);
+}
+
+#[test]
+fn truncated_glb_is_refused_with_a_reason() {
+    let glb = one_quad_glb();
+    for cut in [0, 5, 12, 19, glb.len() / 2, glb.len() - 1] {
+        let err = load_scene(&glb[..cut], &ExternalFiles::Refuse, LIMIT).unwrap_err();
+        assert!(
+            matches!(err, SceneError::Unreadable(_)),
+            "cut at {cut}: {err:?}"
+        );
+        assert!(!message(&err).is_empty());
+    }
+}
+
+#[test]
+fn wrong_magic_and_garbage_are_refused() {
+    for bytes in [
+        &b"glTX\x02\x00\x00\x00"[..],
+        b"hello world",
+        b"{not json",
+        b"\x00\x01\x02",
+    ] {
+        let err = load_scene(bytes, &ExternalFiles::Refuse, LIMIT).unwrap_err();
+        assert!(matches!(err, SceneError::Unreadable(_)), "{err:?}");
+    }
+}
+
+#[test]
+fn index_out_of_range_names_the_primitive() {
+    let (doc, mut bin) = glb_parts(&one_quad_glb());
+    // The index buffer follows 4 positions (48 bytes); make the third index 99.
+    bin[48 + 8..48 + 12].copy_from_slice(&99u32.to_le_bytes());
+    let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap_err();
+    let m = message(&err);
+    assert!(matches!(err, SceneError::Invalid(_)), "{err:?}");
+    assert!(
+        m.contains("mesh 0 primitive 0") && m.contains("out of range"),
+        "{m}"
+    );
+}
+
+#[test]
+fn nan_positions_are_refused_and_every_bad_primitive_is_reported() {
+    let mut b = SceneBuilder::new();
+    let m = b.material([0.5; 3], [1.0; 3], false);
+    b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+    b.quad(m, DVec3::Z, DVec3::X, DVec3::Y, 1);
+    let (doc, mut bin) = glb_parts(&b.to_glb());
+    let nan = f32::NAN.to_le_bytes();
+    // First vertex of mesh 0 (offset 0) and of mesh 1 (after 48 + 24 bytes of mesh 0).
+    bin[0..4].copy_from_slice(&nan);
+    bin[72 + 4..72 + 8].copy_from_slice(&nan);
+    let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap_err();
+    let m = message(&err);
+    match &err {
+        SceneError::Invalid(problems) => assert_eq!(problems.len(), 2, "{m}"),
+        other => panic!("expected Invalid, got {other:?}"),
+    }
+    assert!(
+        m.contains("mesh 0 primitive 0") && m.contains("mesh 1 primitive 0") && m.contains("NaN"),
+        "{m}"
+    );
+}
+
+#[test]
+fn cyclic_node_graph_is_refused_not_followed() {
+    let (mut doc, bin) = glb_parts(&one_quad_glb());
+    doc["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [0]}]);
+    doc["scenes"] = json!([{"nodes": [0]}]);
+    let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT);
+    let err = err.expect_err("a cycle must be refused");
+    assert!(message(&err).contains("node"), "{}", message(&err));
+}
+
+#[test]
+fn lying_buffer_length_is_refused() {
+    let (mut doc, bin) = glb_parts(&one_quad_glb());
+    doc["buffers"][0]["byteLength"] = json!(1_000_000);
+    let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap_err();
+    assert!(!message(&err).is_empty());
+}
+
+#[test]
+fn mirrored_node_transform_keeps_the_front_side() {
+    let (mut doc, bin) = glb_parts(&one_quad_glb());
+    doc["nodes"][0]["scale"] = json!([-1.0, 1.0, 1.0]);
+    let scene = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap();
+    // Mirroring x keeps the quad's normal at +z; the winding is compensated.
+    for t in &scene.triangles {
+        assert!(
+            t.cross().normalize().dot(DVec3::Z) > 0.999,
+            "{:?}",
+            t.cross()
+        );
+        assert!(t.vertices.iter().all(|v| v.x <= 0.0));
+    }
+}
+
+#[test]
+fn data_uri_gltf_loads_and_external_uris_are_refused_over_http() {
+    use base64::Engine;
+    let (mut doc, bin) = glb_parts(&one_quad_glb());
+    let uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&bin)
+    );
+    doc["buffers"][0]["uri"] = json!(uri);
+    let text = serde_json::to_vec(&doc).unwrap();
+    let scene =
+        load_scene(&text, &ExternalFiles::Refuse, LIMIT).expect("self-contained glTF loads");
+    assert_eq!(scene.triangles.len(), 2);
+    doc["buffers"][0]["uri"] = json!("scene.bin");
+    let err = load_scene(
+        &serde_json::to_vec(&doc).unwrap(),
+        &ExternalFiles::Refuse,
+        LIMIT,
+    )
+    .unwrap_err();
+    assert!(message(&err).contains("scene.bin"), "{}", message(&err));
+    // A data URI whose payload is shorter than the buffer says it is.
+    doc["buffers"][0]["uri"] = json!("data:application/octet-stream;base64,AAAA");
+    let err = load_scene(
+        &serde_json::to_vec(&doc).unwrap(),
+        &ExternalFiles::Refuse,
+        LIMIT,
+    )
+    .unwrap_err();
+    assert!(message(&err).contains("buffer 0"), "{}", message(&err));
+}
+
+#[test]
+fn triangle_limit_is_enforced() {
+    let err = load_scene(&one_quad_glb(), &ExternalFiles::Refuse, 1).unwrap_err();
+    assert!(
+        matches!(err, SceneError::Unsolvable(_)) && message(&err).contains("limit"),
+        "{err:?}"
+    );
+}
+
+#[test]
+fn the_shared_sample_gltf_with_external_bin_loads() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("scenes/cornell_box/cornell_box.gltf");
+    let scene = wavrad::scene::load_scene_from_path(&path, LIMIT).expect("bundled sample loads");
+    assert_eq!(scene.triangles.len(), 32);
+    assert_eq!(scene.emissive_triangle_count(), 2);
+}
+
+#[test]
+fn cli_exits_2_with_a_one_line_reason_on_bad_input() {
+    let dir = std::env::temp_dir().join(format!("wavrad-cli-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("truncated.glb");
+    let glb = one_quad_glb();
+    std::fs::write(&bad, &glb[..glb.len() / 2]).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
+        .args([
+            "solve",
+            bad.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("truncated"), "{stderr}");
+    assert!(out.stdout.is_empty(), "stdout must stay clean on errors");
+    // Bad option: exit 2 as well.
+    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
+        .args(["solve", bad.to_str().unwrap(), "--out", "x", "--order", "7"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn cli_solve_writes_the_contract_outputs() {
+    let dir = std::env::temp_dir().join(format!("wavrad-cli-ok-{}", std::process::id()));
+    let scene = dir.join("box.glb");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut b = SceneBuilder::new();
+    let w = b.material([0.5; 3], [0.0; 3], false);
+    let e = b.material([0.5; 3], [1.0; 3], false);
+    b.inward_box([w, w, w, e, w, w], DVec3::ZERO, DVec3::ONE, 1);
+    std::fs::write(&scene, b.to_glb()).unwrap();
+    let out_dir = dir.join("out");
+    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
+        .args([
+            "solve",
+            scene.to_str().unwrap(),
+            "--out",
+            out_dir.to_str().unwrap(),
+            "--order",
+            "1",
+            "--json",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: Value = serde_json::from_slice(&out.stdout).expect("one JSON summary on stdout");
+    assert_eq!(summary["stats"]["stop_reason"], "converged");
+    let result: Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("result.json")).unwrap()).unwrap();
+    assert_eq!(result["scene"]["triangles"], 12);
+    assert_eq!(result["faces"].as_array().unwrap().len(), 12);
+    assert!(result["stats"]["peak_memory_bytes"].as_u64().unwrap() > 0);
+    let csv = std::fs::read_to_string(out_dir.join("convergence.csv")).unwrap();
+    assert!(csv.starts_with("seconds,unshot_ratio,elements,links\n") && csv.lines().count() > 2);
+    // The EXR reads back with the atlas size result.json states, and coverage alpha in [0, 1].
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        out_dir.join("lightmap.exr"),
+        |res, _| (res.width(), vec![[0f32; 4]; res.width() * res.height()]),
+        |(w, px): &mut (usize, Vec<[f32; 4]>), pos, (r, g, b, a): (f32, f32, f32, f32)| {
+            px[pos.y() * *w + pos.x()] = [r, g, b, a];
+        },
+    )
+    .expect("lightmap.exr reads back");
+    let size = image.layer_data.size;
+    assert_eq!(
+        size.width() as u64,
+        result["atlas"]["pages"][0]["width"].as_u64().unwrap()
+    );
+    assert_eq!(
+        size.height() as u64,
+        result["atlas"]["pages"][0]["height"].as_u64().unwrap()
+    );
+    let (_, texels) = &image.layer_data.channel_data.pixels;
+    assert!(texels
+        .iter()
+        .all(|t| t.iter().all(|c| c.is_finite() && *c >= 0.0) && t[3] <= 1.0));
+    assert!(texels.iter().any(|t| t[3] == 1.0) && texels.iter().any(|t| t[0] > 0.0));
+    let _ = std::fs::remove_dir_all(&dir);
+}
