@@ -74,7 +74,7 @@ pub fn build_faces(scene: &Scene) -> FaceSet {
     for (i, t) in scene.triangles.iter().enumerate() {
         let cross = t.cross();
         let area = 0.5 * cross.length();
-        if !(area > min_area) {
+        if area.is_nan() || area <= min_area {
             dropped += 1;
             continue;
         }

@@ -4,6 +4,10 @@
 //! Modules in data-flow order; each depends only on those before it (see ARCHITECTURE.md):
 //! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`.
 
+// Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;
+// iterator chains would hide the formulas.
+#![allow(clippy::needless_range_loop)]
+
 pub mod cli;
 pub mod domain;
 pub mod faces;

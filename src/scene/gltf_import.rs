@@ -90,8 +90,7 @@ fn check_container(bytes: &[u8]) -> Result<(), SceneError> {
     }
     let first = bytes
         .iter()
-        .skip_while(|b| b.is_ascii_whitespace() || **b == 0xEF || **b == 0xBB || **b == 0xBF)
-        .next();
+        .find(|b| !(b.is_ascii_whitespace() || **b == 0xEF || **b == 0xBB || **b == 0xBF));
     if first != Some(&b'{') {
         return Err(SceneError::Unreadable(
             "neither a GLB (magic 'glTF') nor glTF JSON (starting with '{')".into(),

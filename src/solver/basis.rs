@@ -4,6 +4,7 @@
 //!   (`1`, `sqrt3 (2s-1)`, `sqrt5 (6s^2-6s+1)`): `order^2` functions.
 //! - Triangle: orthonormal polynomials of total degree `< order` (1, 3, 6 functions), built by
 //!   Gram-Schmidt on monomials with an exact quadrature.
+//!
 //! Both are orthonormal for the reference shape's measure normalised to 1, so an element's first
 //! coefficient is the mean of its function (scale invariance: coefficients do not depend on area).
 //!

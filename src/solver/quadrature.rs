@@ -4,6 +4,7 @@
 //! - Square `[0,1]^2`: tensor product, exact to degree `2n - 1` per axis.
 //! - Triangle `s,t >= 0, s+t <= 1`: the collapsed (Duffy) product `s = a, t = b (1 - a)` with
 //!   weight `w_a w_b (1 - a)` (times 2 to normalise), exact for total degree `<= 2n - 2`.
+//!
 //! Nodes are computed by Newton's method on the Legendre recurrence (no tables to mistype).
 
 use crate::domain::Shape;
