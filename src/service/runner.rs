@@ -18,7 +18,7 @@ use tokio::sync::oneshot;
 
 /// Nice value of the solver threads (Linux): request handling wins the CPU when both want it.
 #[cfg(target_os = "linux")]
-const SOLVER_NICE: libc::c_int = 10;
+const SOLVER_NICE: libc::c_int = 5;
 
 /// Builds the solver pool: every core, named threads, lower priority.
 pub(crate) fn solver_pool() -> io::Result<rayon::ThreadPool> {
