@@ -308,6 +308,27 @@ fn faces(a: FacesArgs) -> ExitCode {
 }
 
 fn serve(a: ServeArgs) -> ExitCode {
-    let _ = a;
-    internal("serve is not available in this build")
+    let mut config = crate::service::ServiceConfig::new(a.data_dir);
+    config.workers = a.workers;
+    config.max_queued = a.max_queued;
+    config.max_body_bytes = a.max_body_bytes;
+    config.max_triangles = a.max_triangles;
+    if let Err(e) = config.validate() {
+        return bad_input(e);
+    }
+    let runtime = match tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(r) => r,
+        Err(e) => return internal(format!("cannot start the async runtime: {e}")),
+    };
+    match runtime.block_on(crate::service::serve(config, a.addr)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => bad_input(e),
+        Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
+            bad_input(format!("cannot listen on {}: {e}", a.addr))
+        }
+        Err(e) => internal(e),
+    }
 }

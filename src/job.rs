@@ -130,7 +130,7 @@ pub enum JobError {
 /// What a finished job reports.
 #[derive(Debug, Clone)]
 pub struct JobOutcome {
-    /// The full result.json document.
+    /// The full result.json document (`Null` for a cancelled job, which writes no outputs).
     pub result: serde_json::Value,
     pub stop_reason: StopReason,
 }
@@ -156,6 +156,14 @@ pub fn run_job_with_probes(
     observe: &mut dyn FnMut(&Progress),
 ) -> Result<JobOutcome, JobError> {
     let (prepared, solution) = bake(scene, params.solver_params(), cancel, observe)?;
+    let stop_reason = solution.stats.stop_reason.unwrap_or(StopReason::Converged);
+    if stop_reason == StopReason::Cancelled {
+        // A cancelled job's outputs are not wanted: return at once.
+        return Ok(JobOutcome {
+            result: serde_json::Value::Null,
+            stop_reason,
+        });
+    }
     std::fs::create_dir_all(out_dir)?;
     let options = OutputOptions {
         texels_per_meter: params.texels_per_meter,
@@ -169,6 +177,6 @@ pub fn run_job_with_probes(
     }
     Ok(JobOutcome {
         result,
-        stop_reason: solution.stats.stop_reason.unwrap_or(StopReason::Converged),
+        stop_reason,
     })
 }

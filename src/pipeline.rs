@@ -17,7 +17,7 @@ pub struct Prepared {
     pub diagonal: f64,
 }
 
-/// Refuses scenes with nothing to solve; returns the warnings to add to the result.
+/// Refuses scenes with nothing to solve (no emitter), with a reason for the user.
 pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
     if scene.triangles.is_empty() {
         return Err(SceneError::Unsolvable("the scene has no triangles".into()));

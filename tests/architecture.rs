@@ -25,7 +25,11 @@ fn every_source_file_has_a_module_header() {
     assert!(files.len() > 10);
     for f in files {
         let text = std::fs::read_to_string(&f).unwrap();
-        assert!(text.starts_with("//!"), "{} must open with a //! header saying what it owns", f.display());
+        assert!(
+            text.starts_with("//!"),
+            "{} must open with a //! header saying what it owns",
+            f.display()
+        );
     }
 }
 
@@ -33,10 +37,46 @@ fn every_source_file_has_a_module_header() {
 fn dependencies_point_along_the_data_flow() {
     // (module directory or file, names it must not mention)
     let rules: &[(&str, &[&str])] = &[
-        ("scene", &["crate::faces", "crate::domain", "crate::solver", "crate::output", "crate::service", "crate::cli", "crate::job"]),
-        ("faces.rs", &["crate::domain", "crate::solver", "crate::output", "crate::service", "gltf::"]),
-        ("domain.rs", &["crate::solver", "crate::output", "crate::service", "gltf::"]),
-        ("solver", &["crate::scene::load", "crate::faces", "crate::output", "crate::service", "crate::job", "gltf::", "serde", "tokio", "axum"]),
+        (
+            "scene",
+            &[
+                "crate::faces",
+                "crate::domain",
+                "crate::solver",
+                "crate::output",
+                "crate::service",
+                "crate::cli",
+                "crate::job",
+            ],
+        ),
+        (
+            "faces.rs",
+            &[
+                "crate::domain",
+                "crate::solver",
+                "crate::output",
+                "crate::service",
+                "gltf::",
+            ],
+        ),
+        (
+            "domain.rs",
+            &["crate::solver", "crate::output", "crate::service", "gltf::"],
+        ),
+        (
+            "solver",
+            &[
+                "crate::scene::load",
+                "crate::faces",
+                "crate::output",
+                "crate::service",
+                "crate::job",
+                "gltf::",
+                "serde",
+                "tokio",
+                "axum",
+            ],
+        ),
         ("output", &["crate::service", "tokio", "axum"]),
     ];
     for (module, forbidden) in rules {
@@ -50,7 +90,11 @@ fn dependencies_point_along_the_data_flow() {
         for f in files {
             let text = std::fs::read_to_string(&f).unwrap();
             for word in *forbidden {
-                assert!(!text.contains(word), "{} mentions {word}: dependencies must point along the data flow", f.display());
+                assert!(
+                    !text.contains(word),
+                    "{} mentions {word}: dependencies must point along the data flow",
+                    f.display()
+                );
             }
         }
     }

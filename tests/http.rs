@@ -1,4 +1,5 @@
-//! The HTTP service over a real socket: submit, poll, download, refuse bad input, limits, cancel.
+//! The HTTP service over a real socket (port 0): submit, poll, download, refuse bad input,
+//! limits, cancel.
 
 use base64::Engine;
 use glam::DVec3;
@@ -300,7 +301,8 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
     assert!(!job_dir.exists(), "the job's directory is gone");
 }
 
-/// One emitting triangle as glTF JSON (buffer without a URI) and its buffer: positions (3 x VEC3 f32) then indices (3 x u32).
+/// One emitting triangle: the glTF JSON (its buffer has no URI yet) and the buffer's bytes,
+/// positions (3 x VEC3 f32) then indices (3 x u32).
 fn one_triangle_gltf(positions: [[f32; 3]; 3], indices: [u32; 3]) -> (Value, Vec<u8>) {
     let mut bin = Vec::new();
     for p in positions {
@@ -336,7 +338,9 @@ const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bad_scenes_are_refused_and_the_server_keeps_working() {
-    let base = start(ServiceConfig::new(data_dir("bad"))).await;
+    let mut config = ServiceConfig::new(data_dir("bad"));
+    config.max_triangles = 12;
+    let base = start(config).await;
     let client = client();
 
     // A GLB cut in half.
@@ -377,6 +381,17 @@ async fn bad_scenes_are_refused_and_the_server_keeps_working() {
     assert_eq!(error["code"], "invalid_scene");
     assert!(
         error["message"].as_str().unwrap().contains("NaN"),
+        "{error}"
+    );
+
+    // Over --max-triangles (12 here).
+    let mut b = SceneBuilder::new();
+    let lamp = b.material([0.5; 3], [1.0; 3], false);
+    b.inward_box([lamp; 6], DVec3::ZERO, DVec3::ONE, 2);
+    let response = submit(&client, &base, "", "model/gltf-binary", b.to_glb()).await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert!(
+        error["message"].as_str().unwrap().contains("max-triangles"),
         "{error}"
     );
 
@@ -497,6 +512,13 @@ async fn requests_outside_the_contract_get_error_json() {
     );
 
     let response = submit(&client, &base, "", "model/gltf-binary", Vec::new()).await;
+    error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+
+    // A buffer URI naming a file is never resolved on the server.
+    let (mut root, _) = one_triangle_gltf(TRIANGLE, [0, 1, 2]);
+    root["buffers"][0]["uri"] = json!("/etc/passwd");
+    let body = serde_json::to_vec(&root).unwrap();
+    let response = submit(&client, &base, "", "model/gltf+json", body).await;
     error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
 
     // Still alive and empty.

@@ -29,18 +29,44 @@ pub struct OutputOptions {
     pub exr_float: bool,
 }
 
-/// Writes `bytes` to `path` atomically: temporary file, fsync, rename.
+/// A temporary name beside `path`, unique per process and call (so concurrent writers never share one).
+fn temporary_path(path: &Path) -> std::path::PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
+    path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()))
+}
+
+/// Makes a rename in `path`'s directory durable (fsync of the directory; a no-op where unsupported).
+fn sync_parent(path: &Path) -> std::io::Result<()> {
+    if let Some(dir) = path.parent() {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        if let Ok(d) = std::fs::File::open(dir) {
+            d.sync_all()?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes `bytes` to `path` atomically: temporary file, fsync, rename, fsync of the directory.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = path.with_extension(format!(
-        "{}.tmp",
-        path.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    {
+    let tmp = temporary_path(path);
+    let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         f.write_all(bytes)?;
         f.sync_all()?;
+        std::fs::rename(&tmp, path)?;
+        sync_parent(path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
     }
-    std::fs::rename(&tmp, path)
+    result
 }
 
 /// The process's peak resident memory (VmHWM) in bytes, 0 where unknown.
@@ -184,7 +210,7 @@ fn write_exr(
     texels: &[[f32; 4]],
     float: bool,
 ) -> std::io::Result<()> {
-    let tmp = path.with_extension("exr.tmp");
+    let tmp = temporary_path(path);
     let w = width as usize;
     let result = if float {
         exr::prelude::write_rgba_file(&tmp, w, height as usize, |x, y| {
@@ -200,7 +226,8 @@ fn write_exr(
     };
     result.map_err(|e| std::io::Error::other(e.to_string()))?;
     std::fs::File::open(&tmp)?.sync_all()?;
-    std::fs::rename(&tmp, path)
+    std::fs::rename(&tmp, path)?;
+    sync_parent(path)
 }
 
 /// Exposure of the preview: the 99th percentile of covered texel luminance maps to 0.9.

@@ -18,7 +18,7 @@ use serde::Serialize;
 use std::sync::Arc;
 use std::time::SystemTime;
 
-/// Content types accepted for a scene upload, and what each is.
+/// Content types accepted for a scene upload: GLB (two names), then glTF JSON (two names).
 const ACCEPTED_SCENE_TYPES: [&str; 4] = [
     "model/gltf-binary",
     "application/octet-stream",

@@ -116,21 +116,7 @@ fn process(state: &AppState, job: &Arc<Job>) {
     let _enter = span.enter();
     tracing::info!("solving");
     let max_triangles = state.config().max_triangles;
-    let outcome = catch_unwind(AssertUnwindSafe(|| solve(state, job, max_triangles)));
-    let finished = match outcome {
-        Ok(Ok(outcome)) => Finished::Solved(outcome),
-        Ok(Err(e)) => Finished::Error(job_error_body(&e)),
-        Err(payload) => {
-            let text = panic_message(payload.as_ref());
-            tracing::error!(panic = %text, "the solver panicked");
-            Finished::Error(ErrorBody {
-                code: "solver_panic".into(),
-                message: format!(
-                    "the solver failed unexpectedly ({text}); this is a bug: please report it with the scene"
-                ),
-            })
-        }
-    };
+    let finished = guarded(|| solve(state, job, max_triangles));
     job.update(|s| {
         match finished {
             Finished::Solved(outcome) => {
@@ -158,6 +144,25 @@ fn process(state: &AppState, job: &Arc<Job>) {
 enum Finished {
     Solved(JobOutcome),
     Error(ErrorBody),
+}
+
+/// Runs a solve; its error or panic becomes the job's error (a panic never leaves this frame, so
+/// it cannot reach rayon, which would abort the process).
+fn guarded(solve: impl FnOnce() -> Result<JobOutcome, JobError>) -> Finished {
+    match catch_unwind(AssertUnwindSafe(solve)) {
+        Ok(Ok(outcome)) => Finished::Solved(outcome),
+        Ok(Err(e)) => Finished::Error(job_error_body(&e)),
+        Err(payload) => {
+            let text = panic_message(payload.as_ref());
+            tracing::error!(panic = %text, "the solver panicked");
+            Finished::Error(ErrorBody {
+                code: "solver_panic".into(),
+                message: format!(
+                    "the solver failed unexpectedly ({text}); this is a bug: please report it with the scene"
+                ),
+            })
+        }
+    }
 }
 
 /// Loads the job's scene from its directory (the upload is not kept in memory while queued) and
@@ -205,4 +210,31 @@ fn final_progress(result: &serde_json::Value) -> Option<ProgressView> {
         seconds: stats.get("seconds")?.as_f64()?,
         eta_seconds: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_panicking_solve_fails_its_job_and_not_the_pool() {
+        let pool = solver_pool().unwrap();
+        let finished = pool.install(|| guarded(|| panic!("boom in a shot")));
+        let Finished::Error(body) = finished else {
+            panic!("a panic is an error")
+        };
+        assert_eq!(body.code, "solver_panic");
+        assert!(body.message.contains("boom in a shot"));
+        // The pool still works.
+        assert_eq!(pool.install(|| 2 + 2), 4);
+    }
+
+    #[test]
+    fn scene_errors_keep_their_code() {
+        let finished = guarded(|| Err(JobError::Scene(SceneError::Unsolvable("nothing".into()))));
+        let Finished::Error(body) = finished else {
+            panic!("an error")
+        };
+        assert_eq!(body.code, "unsolvable_scene");
+    }
 }
