@@ -120,6 +120,14 @@ fn enclosure_balance(rho: f64) {
         sum_b += sol.mean_radiosity(i)[0] * r.area_m2;
         emitted += r.exitance[0] * r.area_m2;
     }
+    for pair in sol.convergence.windows(2) {
+        assert!(
+            pair[1].unshot_ratio <= pair[0].unshot_ratio * (1.0 + 1e-12),
+            "unshot ratio rose from {} to {}",
+            pair[0].unshot_ratio,
+            pair[1].unshot_ratio
+        );
+    }
     let mean = sum_b / area;
     let expected = emitted / ((1.0 - rho) * area);
     println!(
@@ -135,4 +143,5 @@ fn enclosure_balance(rho: f64) {
 #[test]
 fn closed_enclosure_mean_radiosity_balances_emitted_power() {
     enclosure_balance(0.5);
+    enclosure_balance(0.9);
 }
