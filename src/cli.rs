@@ -280,8 +280,8 @@ fn faces(a: FacesArgs) -> ExitCode {
         Ok(s) => s,
         Err(code) => return code,
     };
-    let prepared = crate::pipeline::prepare(&scene);
-    let doc = crate::output::faces_json(&prepared.faces, &prepared.roots);
+    let prepared = crate::pipeline::prepare(&scene, crate::domain::DomainMode::Extended);
+    let doc = crate::output::faces_json(&prepared.faces, &prepared.surfaces);
     if a.json {
         println!("{doc}");
     } else {

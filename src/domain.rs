@@ -1,5 +1,9 @@
-//! Domains: one element root per radiosity side of each face, with the frame the solver's basis
-//! functions and the lightmap live on.
+//! Domains: the element roots of every face side (what the solver's bases live on) and the
+//! surfaces (one per face side: the frame its lightmap rectangle lives on, and its roots).
+//!
+//! A triangle or parallelogram face is one native root; any other face is, until extended domains
+//! exist, one triangle root per triangle of its triangulation (the paper's tessellated baseline),
+//! framed for the lightmap by an enclosing rectangle in its plane.
 //!
 //! A root's frame maps reference coordinates `(s, t)` to world space: `x(s,t) = origin + s*u + t*v`.
 //! For a [`Shape::Parallelogram`] `(s,t)` ranges over `[0,1]^2`; for a [`Shape::Triangle`] over
@@ -85,7 +89,116 @@ impl ElementRoot {
     }
 }
 
-fn frame_of(face: &Face) -> (Shape, Frame) {
+impl ElementRoot {
+    /// Locates world point `x` on this root: its reference coordinates clamped into the shape, the
+    /// distance of `x` from the root's plane, and the in-plane distance from the shape.
+    pub fn locate(&self, x: DVec3) -> (DVec2, f64, f64) {
+        let f = &self.frame;
+        let plane_distance = self.normal.dot(x - f.origin);
+        let st = plane_coordinates(f, x - self.normal * plane_distance);
+        let inside = clamp_to_shape(self.shape, st);
+        let outside = (f.point(inside) - f.point(st)).length();
+        (inside, plane_distance.abs(), outside)
+    }
+}
+
+/// Coordinates `(s, t)` of the in-plane point `x` in `frame` (least squares for points off the plane).
+pub fn plane_coordinates(f: &Frame, x: DVec3) -> DVec2 {
+    let q = x - f.origin;
+    let (uu, uv, vv) = (f.u.dot(f.u), f.u.dot(f.v), f.v.dot(f.v));
+    let (qu, qv) = (q.dot(f.u), q.dot(f.v));
+    let det = uu * vv - uv * uv;
+    DVec2::new((qu * vv - qv * uv) / det, (qv * uu - qu * uv) / det)
+}
+
+/// The closest point of the reference shape to `st`.
+pub fn clamp_to_shape(shape: Shape, st: DVec2) -> DVec2 {
+    let c = st.clamp(DVec2::ZERO, DVec2::ONE);
+    match shape {
+        Shape::Parallelogram => c,
+        Shape::Triangle => {
+            if c.x + c.y <= 1.0 {
+                c
+            } else {
+                // Project onto s + t = 1 within the segment.
+                let d = 0.5 * (c.x + c.y - 1.0);
+                DVec2::new(c.x - d, c.y - d).clamp(DVec2::ZERO, DVec2::ONE)
+            }
+        }
+    }
+}
+
+/// How faces that are neither triangles nor parallelograms are represented.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum DomainMode {
+    /// The paper's extended domains (not built yet: such faces are tessellated meanwhile).
+    #[default]
+    Extended,
+    /// The paper's baseline: every such face is split into its triangles.
+    Tessellated,
+}
+
+/// One radiosity side of a face as outputs see it: its frame (the lightmap rectangle's parameter
+/// square) and the element roots that carry its radiosity (contiguous in [`Domains::roots`]).
+#[derive(Debug, Clone)]
+pub struct Surface {
+    pub face: FaceId,
+    pub side: Side,
+    pub kind: FaceKind,
+    /// Shape of the frame: a triangle face uses the part `s + t <= 1` of its rectangle.
+    pub shape: Shape,
+    pub frame: Frame,
+    /// The face's own area (not the frame's), m^2.
+    pub area_m2: f64,
+    pub roots: std::ops::Range<usize>,
+}
+
+impl Surface {
+    /// Area of the frame's shape (the domain), m^2.
+    pub fn domain_area_m2(&self) -> f64 {
+        match self.shape {
+            Shape::Triangle => 0.5 * self.frame.cross().length(),
+            Shape::Parallelogram => self.frame.cross().length(),
+        }
+    }
+}
+
+/// Element roots and the surfaces they make up.
+#[derive(Debug, Clone, Default)]
+pub struct Domains {
+    pub roots: Vec<ElementRoot>,
+    pub surfaces: Vec<Surface>,
+}
+
+/// A rectangle in the face's plane enclosing its outer ring, aligned with its longest edge, with
+/// `u x v` along `normal`. (The minimal-area enclosing parallelogram replaces it with extended
+/// domains.)
+fn enclosing_rectangle(outer: &[DVec3], normal: DVec3) -> Frame {
+    let mut e1 = DVec3::X;
+    let mut longest = -1.0;
+    for i in 0..outer.len() {
+        let d = outer[(i + 1) % outer.len()] - outer[i];
+        if d.length() > longest {
+            longest = d.length();
+            e1 = d / d.length();
+        }
+    }
+    let e2 = normal.cross(e1);
+    let (mut lo, mut hi) = (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY));
+    for p in outer {
+        let q = DVec2::new((*p - outer[0]).dot(e1), (*p - outer[0]).dot(e2));
+        lo = lo.min(q);
+        hi = hi.max(q);
+    }
+    Frame {
+        origin: outer[0] + e1 * lo.x + e2 * lo.y,
+        u: e1 * (hi.x - lo.x),
+        v: e2 * (hi.y - lo.y),
+    }
+}
+
+/// The face's own frame and shape (before any side flip).
+fn face_frame(face: &Face) -> (Shape, Frame) {
     match face.kind {
         FaceKind::Triangle => {
             let [a, b, c] = [face.outer[0], face.outer[1], face.outer[2]];
@@ -98,8 +211,7 @@ fn frame_of(face: &Face) -> (Shape, Frame) {
                 },
             )
         }
-        // Parallelograms (and, until extended domains exist, anything else with 4 corners).
-        _ => {
+        FaceKind::Parallelogram => {
             let a = face.outer[0];
             (
                 Shape::Parallelogram,
@@ -110,49 +222,91 @@ fn frame_of(face: &Face) -> (Shape, Frame) {
                 },
             )
         }
+        FaceKind::Extended => (
+            Shape::Parallelogram,
+            enclosing_rectangle(&face.outer, face.normal),
+        ),
     }
 }
 
-/// Builds the element roots: one per face side, front before back, in face id order.
-pub fn build_roots(scene: &Scene, faces: &FaceSet) -> Vec<ElementRoot> {
-    let mut roots = Vec::with_capacity(faces.faces.len());
+/// The frame of a root of the given side: the back side swaps `u` and `v` so `u x v` keeps facing
+/// the side's normal.
+fn sided(frame: Frame, side: Side) -> Frame {
+    match side {
+        Side::Front => frame,
+        Side::Back => Frame {
+            origin: frame.origin,
+            u: frame.v,
+            v: frame.u,
+        },
+    }
+}
+
+/// Builds the element roots and surfaces: per face side (front before back, in face id order),
+/// one native root for a triangle or parallelogram face, else one triangle root per triangle of
+/// the face's triangulation.
+pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domains {
+    let _ = mode; // Extended domains come next; both modes tessellate meanwhile.
+    let mut domains = Domains::default();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
-        let (shape, frame) = frame_of(face);
-        let area = match shape {
-            Shape::Triangle => 0.5 * frame.cross().length(),
-            Shape::Parallelogram => frame.cross().length(),
-        };
         let exitance = material.emission.map(|e| std::f64::consts::PI * e);
-        roots.push(ElementRoot {
-            face: face.id,
-            side: Side::Front,
-            shape,
-            frame,
-            normal: face.normal,
-            area_m2: area,
-            material: face.material,
-            rho: material.rho,
-            exitance,
-        });
-        if face.double_sided {
-            let back = Frame {
-                origin: frame.origin,
-                u: frame.v,
-                v: frame.u,
+        let (shape, frame) = face_frame(face);
+        let sides: &[Side] = if face.double_sided {
+            &[Side::Front, Side::Back]
+        } else {
+            &[Side::Front]
+        };
+        for &side in sides {
+            let normal = if side == Side::Front {
+                face.normal
+            } else {
+                -face.normal
             };
-            roots.push(ElementRoot {
+            let first = domains.roots.len();
+            let mut push_root = |shape: Shape, frame: Frame| {
+                let frame = sided(frame, side);
+                let area = match shape {
+                    Shape::Triangle => 0.5 * frame.cross().length(),
+                    Shape::Parallelogram => frame.cross().length(),
+                };
+                domains.roots.push(ElementRoot {
+                    face: face.id,
+                    side,
+                    shape,
+                    frame,
+                    normal,
+                    area_m2: area,
+                    material: face.material,
+                    rho: material.rho,
+                    exitance,
+                });
+            };
+            match face.kind {
+                FaceKind::Triangle | FaceKind::Parallelogram => push_root(shape, frame),
+                FaceKind::Extended => {
+                    for [a, b, c] in &face.triangulation {
+                        push_root(
+                            Shape::Triangle,
+                            Frame {
+                                origin: *a,
+                                u: *b - *a,
+                                v: *c - *a,
+                            },
+                        );
+                    }
+                }
+            }
+            domains.surfaces.push(Surface {
                 face: face.id,
-                side: Side::Back,
+                side,
+                kind: face.kind,
                 shape,
-                frame: back,
-                normal: -face.normal,
-                area_m2: area,
-                material: face.material,
-                rho: material.rho,
-                exitance,
+                frame: sided(frame, side),
+                area_m2: face.area_m2,
+                roots: first..domains.roots.len(),
             });
         }
     }
-    roots
+    domains
 }

@@ -100,6 +100,13 @@ impl JobParams {
         Ok(())
     }
 
+    pub fn domain_mode(&self) -> crate::domain::DomainMode {
+        match self.domain {
+            DomainMode::Extended => crate::domain::DomainMode::Extended,
+            DomainMode::Tessellated => crate::domain::DomainMode::Tessellated,
+        }
+    }
+
     pub fn solver_params(&self) -> SolverParams {
         SolverParams {
             order: self.order,
@@ -155,7 +162,13 @@ pub fn run_job_with_probes(
     cancel: &AtomicBool,
     observe: &mut dyn FnMut(&Progress),
 ) -> Result<JobOutcome, JobError> {
-    let (prepared, solution) = bake(scene, params.solver_params(), cancel, observe)?;
+    let (prepared, solution) = bake(
+        scene,
+        params.domain_mode(),
+        params.solver_params(),
+        cancel,
+        observe,
+    )?;
     let stop_reason = solution.stats.stop_reason.unwrap_or(StopReason::Converged);
     if stop_reason == StopReason::Cancelled {
         // A cancelled job's outputs are not wanted: return at once.

@@ -3,8 +3,8 @@
 //! Used by the CLI, the service and the tests so that all three solve exactly the same way.
 //! Checks that the scene has something to solve (an emitter) before any work.
 
-use crate::domain::{build_roots, ElementRoot};
-use crate::faces::{build_faces, FaceSet};
+use crate::domain::{build_domains, DomainMode, ElementRoot, Surface};
+use crate::faces::{merge_planar_faces, FaceSet};
 use crate::scene::{Scene, SceneError};
 use crate::solver::{solve, visibility::Visibility, Progress, Solution, SolverParams};
 use std::sync::atomic::AtomicBool;
@@ -12,6 +12,8 @@ use std::sync::atomic::AtomicBool;
 /// A scene prepared for solving: its faces, roots and occluders.
 pub struct Prepared {
     pub faces: FaceSet,
+    /// One per face side, with the range of its roots in `roots`.
+    pub surfaces: Vec<Surface>,
     pub roots: Vec<ElementRoot>,
     pub visibility: Visibility,
     pub diagonal: f64,
@@ -35,10 +37,10 @@ pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
     Ok(())
 }
 
-/// Builds faces, element roots and the visibility structure.
-pub fn prepare(scene: &Scene) -> Prepared {
-    let faces = build_faces(scene);
-    let roots = build_roots(scene, &faces);
+/// Builds planar faces, element roots and the visibility structure.
+pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
+    let faces = merge_planar_faces(scene);
+    let domains = build_domains(scene, &faces, mode);
     let occluders = scene
         .triangles
         .iter()
@@ -48,7 +50,8 @@ pub fn prepare(scene: &Scene) -> Prepared {
     let visibility = Visibility::new(occluders, diagonal);
     Prepared {
         faces,
-        roots,
+        surfaces: domains.surfaces,
+        roots: domains.roots,
         visibility,
         diagonal,
     }
@@ -57,12 +60,13 @@ pub fn prepare(scene: &Scene) -> Prepared {
 /// Prepares and solves a scene.
 pub fn bake(
     scene: &Scene,
+    mode: DomainMode,
     params: SolverParams,
     cancel: &AtomicBool,
     observe: &mut dyn FnMut(&Progress),
 ) -> Result<(Prepared, Solution), SceneError> {
     check_solvable(scene)?;
-    let mut prepared = prepare(scene);
+    let mut prepared = prepare(scene, mode);
     let roots = std::mem::take(&mut prepared.roots);
     let solution = solve(
         roots,

@@ -19,7 +19,14 @@ fn solve_glb(
     p: SolverParams,
 ) -> (wavrad::pipeline::Prepared, wavrad::solver::Solution) {
     let scene = load_scene(glb, &ExternalFiles::Refuse, 1_000_000).expect("scene loads");
-    bake(&scene, p, &AtomicBool::new(false), &mut |_| {}).expect("bakes")
+    bake(
+        &scene,
+        Default::default(),
+        p,
+        &AtomicBool::new(false),
+        &mut |_| {},
+    )
+    .expect("bakes")
 }
 
 fn furnace_glb(n: u32) -> Vec<u8> {
@@ -86,7 +93,7 @@ fn parallel_unit_squares_receiver_mean_is_the_form_factor() {
     }
 }
 
-fn enclosure_balance(rho: f64) {
+fn enclosure_balance(rho: f64, order: usize) {
     // A closed box (2 x 1 x 1.5) whose ceiling is four quads, one emitting, around a floating block
     // (outward normals) that adds occlusion.
     let mut b = SceneBuilder::new();
@@ -111,7 +118,7 @@ fn enclosure_balance(rho: f64) {
     b.quad(wall, c + by, bz, bx, 1); // +y
     b.quad(wall, c, by, bx, 1); // -z
     b.quad(wall, c + bz, bx, by, 1); // +z
-    let (_, sol) = solve_glb(&b.to_glb(), params(1));
+    let (_, sol) = solve_glb(&b.to_glb(), params(order));
     let mut area = 0.0;
     let mut sum_b = 0.0;
     let mut emitted = 0.0;
@@ -131,7 +138,7 @@ fn enclosure_balance(rho: f64) {
     let mean = sum_b / area;
     let expected = emitted / ((1.0 - rho) * area);
     println!(
-        "rho {rho}: mean B {mean:.5}, expected {expected:.5}, unshot {}",
+        "rho {rho} M{order}: mean B {mean:.5}, expected {expected:.5}, unshot {}",
         sol.stats.unshot_ratio
     );
     assert!(
@@ -142,6 +149,8 @@ fn enclosure_balance(rho: f64) {
 
 #[test]
 fn closed_enclosure_mean_radiosity_balances_emitted_power() {
-    enclosure_balance(0.5);
-    enclosure_balance(0.9);
+    // The first solver's M1, and the default order for a scene where light bounces ~10 times.
+    // (M1 at rho 0.9 is 3.9 % high at the default tolerance: see the README.)
+    enclosure_balance(0.5, 1);
+    enclosure_balance(0.9, 2);
 }

@@ -50,7 +50,7 @@ fn dependencies_point_along_the_data_flow() {
             ],
         ),
         (
-            "faces.rs",
+            "faces",
             &[
                 "crate::domain",
                 "crate::solver",

@@ -252,7 +252,11 @@ fn cli_solve_writes_the_contract_outputs() {
     let result: Value =
         serde_json::from_slice(&std::fs::read(out_dir.join("result.json")).unwrap()).unwrap();
     assert_eq!(result["scene"]["triangles"], 12);
-    assert_eq!(result["faces"].as_array().unwrap().len(), 12);
+    // The box's 12 triangles merge into 6 parallelogram faces, one radiosity side each.
+    let faces = result["faces"].as_array().unwrap();
+    assert_eq!(faces.len(), 6);
+    assert!(faces.iter().all(|f| f["kind"] == "parallelogram"));
+    assert_eq!(result["scene"]["faces"], 6);
     assert!(result["stats"]["peak_memory_bytes"].as_u64().unwrap() > 0);
     let csv = std::fs::read_to_string(out_dir.join("convergence.csv")).unwrap();
     assert!(csv.starts_with("seconds,unshot_ratio,elements,links\n") && csv.lines().count() > 2);

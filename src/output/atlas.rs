@@ -1,10 +1,10 @@
-//! Lightmap atlas: one rectangle per element root (proportional to its frame's `|u| x |v|` at the
+//! Lightmap atlas: one rectangle per surface (face side) (proportional to its frame's `|u| x |v|` at the
 //! texel density), each surrounded by a gutter, packed on shelves into pages.
 //!
 //! Invariants (checked by [`Atlas::assert_well_formed`]): rectangles with their gutters lie inside
 //! their page and never overlap; every page is at most `MAX_PAGE_SIZE` texels on a side.
 
-use crate::domain::ElementRoot;
+use crate::domain::Frame;
 
 /// Largest page side, in texels.
 pub const MAX_PAGE_SIZE: u32 = 4096;
@@ -39,11 +39,8 @@ pub struct Atlas {
 }
 
 /// The density that spends about [`DEFAULT_TEXEL_BUDGET`] texels on the scene's frames.
-pub fn default_density(roots: &[ElementRoot]) -> f64 {
-    let area: f64 = roots
-        .iter()
-        .map(|r| r.frame.u.length() * r.frame.v.length())
-        .sum();
+pub fn default_density(frames: &[Frame]) -> f64 {
+    let area: f64 = frames.iter().map(|f| f.u.length() * f.v.length()).sum();
     if area > 0.0 {
         (DEFAULT_TEXEL_BUDGET / area).sqrt()
     } else {
@@ -52,12 +49,12 @@ pub fn default_density(roots: &[ElementRoot]) -> f64 {
 }
 
 impl Atlas {
-    /// Packs the roots' rectangles at `texels_per_meter`.
-    pub fn pack(roots: &[ElementRoot], texels_per_meter: f64) -> Atlas {
+    /// Packs one rectangle per frame at `texels_per_meter`.
+    pub fn pack(frames: &[Frame], texels_per_meter: f64) -> Atlas {
         let size = |len: f64| ((len * texels_per_meter).ceil() as u32).clamp(1, MAX_RECT_SIZE);
-        let sizes: Vec<(u32, u32)> = roots
+        let sizes: Vec<(u32, u32)> = frames
             .iter()
-            .map(|r| (size(r.frame.u.length()), size(r.frame.v.length())))
+            .map(|f| (size(f.u.length()), size(f.v.length())))
             .collect();
         let total: f64 = sizes
             .iter()
@@ -68,7 +65,7 @@ impl Atlas {
             .next_power_of_two()
             .clamp(widest, MAX_PAGE_SIZE);
         // Shelf packing, tallest first; ties by index for determinism.
-        let mut order: Vec<usize> = (0..roots.len()).collect();
+        let mut order: Vec<usize> = (0..frames.len()).collect();
         order.sort_by_key(|&i| (std::cmp::Reverse(sizes[i].1), i));
         let mut rects = vec![
             AtlasRect {
@@ -78,7 +75,7 @@ impl Atlas {
                 w: 0,
                 h: 0
             };
-            roots.len()
+            frames.len()
         ];
         let mut pages = Vec::new();
         let (mut page, mut x, mut y, mut shelf_h, mut used_w) = (0u32, 0u32, 0u32, 0u32, 0u32);

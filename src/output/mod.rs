@@ -9,13 +9,13 @@
 pub mod atlas;
 pub mod probes;
 
-use crate::domain::{ElementRoot, Shape};
+use crate::domain::{clamp_to_shape, plane_coordinates, Frame, Side, Surface};
 use crate::faces::FaceSet;
 use crate::job::JobParams;
 use crate::pipeline::Prepared;
 use crate::scene::Scene;
 use crate::solver::{Progress, Solution};
-use atlas::{default_density, Atlas, GUTTER};
+use atlas::{default_density, Atlas, AtlasRect, GUTTER};
 use glam::DVec2;
 use rayon::prelude::*;
 use serde_json::{json, Value};
@@ -87,101 +87,159 @@ fn v3(v: glam::DVec3) -> Value {
     json!([v.x, v.y, v.z])
 }
 
-/// Fraction of the texel `[s0,s1] x [t0,t1]` inside the reference shape.
-fn texel_coverage(shape: Shape, s0: f64, s1: f64, t0: f64, t1: f64) -> f64 {
-    let clamp01 = |a: f64| a.clamp(0.0, 1.0);
-    let area = (s1 - s0) * (t1 - t0);
-    match shape {
-        Shape::Parallelogram => {
-            ((clamp01(s1) - clamp01(s0)) * (clamp01(t1) - clamp01(t0)) / area).clamp(0.0, 1.0)
+/// Area of the axis-aligned box `[x0,x1] x [y0,y1]` inside the convex polygon `poly` (either
+/// orientation), by clipping the box with each edge's half-plane (Sutherland-Hodgman).
+fn box_in_convex_area(x0: f64, x1: f64, y0: f64, y1: f64, poly: &[DVec2]) -> f64 {
+    let mut signed = 0.0;
+    for i in 0..poly.len() {
+        signed += poly[i].perp_dot(poly[(i + 1) % poly.len()]);
+    }
+    let orientation = signed.signum();
+    let mut cur = vec![
+        DVec2::new(x0, y0),
+        DVec2::new(x1, y0),
+        DVec2::new(x1, y1),
+        DVec2::new(x0, y1),
+    ];
+    for i in 0..poly.len() {
+        let a = poly[i];
+        let e = poly[(i + 1) % poly.len()] - a;
+        // Inside: on the left of the edge for a counter-clockwise polygon.
+        let side = |p: DVec2| orientation * e.perp_dot(p - a);
+        let mut next = Vec::with_capacity(cur.len() + 1);
+        for k in 0..cur.len() {
+            let (p, q) = (cur[k], cur[(k + 1) % cur.len()]);
+            let (dp, dq) = (side(p), side(q));
+            if dp >= 0.0 {
+                next.push(p);
+            }
+            if (dp >= 0.0) != (dq >= 0.0) {
+                next.push(p + (q - p) * (dp / (dp - dq)));
+            }
         }
-        Shape::Triangle => {
-            // Clip the texel square by s >= 0, t >= 0, s + t <= 1 and take the polygon's area.
-            let mut poly = vec![
-                DVec2::new(s0, t0),
-                DVec2::new(s1, t0),
-                DVec2::new(s1, t1),
-                DVec2::new(s0, t1),
-            ];
-            for (n, c) in [
-                (DVec2::new(1.0, 0.0), 0.0),
-                (DVec2::new(0.0, 1.0), 0.0),
-                (DVec2::new(-1.0, -1.0), -1.0),
-            ] {
-                let mut out = Vec::with_capacity(poly.len() + 1);
-                for i in 0..poly.len() {
-                    let a = poly[i];
-                    let b = poly[(i + 1) % poly.len()];
-                    let (da, db) = (n.dot(a) - c, n.dot(b) - c);
-                    if da >= 0.0 {
-                        out.push(a);
-                    }
-                    if (da >= 0.0) != (db >= 0.0) {
-                        out.push(a + (b - a) * (da / (da - db)));
-                    }
-                }
-                poly = out;
-                if poly.is_empty() {
-                    return 0.0;
-                }
-            }
-            let mut a2 = 0.0;
-            for i in 0..poly.len() {
-                a2 += poly[i].perp_dot(poly[(i + 1) % poly.len()]);
-            }
-            (0.5 * a2.abs() / area).clamp(0.0, 1.0)
+        cur = next;
+        if cur.len() < 3 {
+            return 0.0;
         }
     }
+    let mut a2 = 0.0;
+    for i in 0..cur.len() {
+        a2 += cur[i].perp_dot(cur[(i + 1) % cur.len()]);
+    }
+    0.5 * a2.abs()
 }
 
-/// The closest point of the reference shape to `st`.
-fn clamp_to_shape(shape: Shape, st: DVec2) -> DVec2 {
-    let c = st.clamp(DVec2::ZERO, DVec2::ONE);
-    match shape {
-        Shape::Parallelogram => c,
-        Shape::Triangle => {
-            if c.x + c.y <= 1.0 {
-                c
-            } else {
-                // Project onto s + t = 1 within the segment.
-                let d = 0.5 * (c.x + c.y - 1.0);
-                DVec2::new(c.x - d, c.y - d).clamp(DVec2::ZERO, DVec2::ONE)
+fn point_in_convex(p: DVec2, poly: &[DVec2]) -> bool {
+    let mut sign = 0.0;
+    for i in 0..poly.len() {
+        let d = (poly[(i + 1) % poly.len()] - poly[i]).perp_dot(p - poly[i]);
+        if d != 0.0 {
+            if sign != 0.0 && d.signum() != sign {
+                return false;
+            }
+            sign = d.signum();
+        }
+    }
+    true
+}
+
+/// The requested quantity at world point `x` on root `i` (clamped into the root).
+fn value_on_root(solution: &Solution, i: usize, x: glam::DVec3) -> [f64; 3] {
+    let root = &solution.roots[i];
+    let st = clamp_to_shape(root.shape, plane_coordinates(&root.frame, x));
+    solution.value_at(i, st)
+}
+
+/// RGBA texels of one surface's block: its rectangle plus the gutter, row-major from the top.
+fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Vec<[f32; 4]> {
+    let g = GUTTER as f64;
+    let (bw, bh) = (
+        (rect.w + 2 * GUTTER) as usize,
+        (rect.h + 2 * GUTTER) as usize,
+    );
+    let (w, h) = (rect.w as f64, rect.h as f64);
+    let mut coverage = vec![0.0f64; bw * bh];
+    let mut value: Vec<Option<[f64; 3]>> = vec![None; bw * bh];
+    let frame = &surface.frame;
+    // Texel-space point (x, y) of the block <-> frame coordinates (s, t).
+    let to_texel = |st: DVec2| DVec2::new(st.x * w + g, st.y * h + g);
+    let to_world = |p: DVec2| frame.point(DVec2::new((p.x - g) / w, (p.y - g) / h));
+    let mut corners = Vec::with_capacity(4);
+    for i in surface.roots.clone() {
+        let root = &solution.roots[i];
+        corners.clear();
+        corners.extend(
+            root.corners()
+                .iter()
+                .map(|c| to_texel(plane_coordinates(frame, *c))),
+        );
+        let lo = corners
+            .iter()
+            .fold(DVec2::splat(f64::INFINITY), |m, c| m.min(*c));
+        let hi = corners
+            .iter()
+            .fold(DVec2::splat(f64::NEG_INFINITY), |m, c| m.max(*c));
+        let (x0, x1) = (
+            (lo.x.floor().max(0.0)) as usize,
+            (hi.x.ceil().max(0.0) as usize).min(bw),
+        );
+        let (y0, y1) = (
+            (lo.y.floor().max(0.0)) as usize,
+            (hi.y.ceil().max(0.0) as usize).min(bh),
+        );
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (fx, fy) = (x as f64, y as f64);
+                let a = box_in_convex_area(fx, fx + 1.0, fy, fy + 1.0, &corners);
+                if a <= 0.0 {
+                    continue;
+                }
+                let k = y * bw + x;
+                coverage[k] += a;
+                let centre = DVec2::new(fx + 0.5, fy + 0.5);
+                if value[k].is_none() && point_in_convex(centre, &corners) {
+                    value[k] = Some(value_on_root(solution, i, to_world(centre)));
+                }
             }
         }
     }
+    // Texels whose centre lies on no root (gutter, outside the face): the nearest root's value.
+    let mut out = Vec::with_capacity(bw * bh);
+    for k in 0..bw * bh {
+        let v = value[k].unwrap_or_else(|| {
+            let x = to_world(DVec2::new((k % bw) as f64 + 0.5, (k / bw) as f64 + 0.5));
+            let nearest = surface.roots.clone().min_by(|&a, &b| {
+                let da = solution.roots[a].locate(x);
+                let db = solution.roots[b].locate(x);
+                (da.1 + da.2).total_cmp(&(db.1 + db.2))
+            });
+            nearest
+                .map(|i| value_on_root(solution, i, x))
+                .unwrap_or([0.0; 3])
+        });
+        let a = coverage[k].clamp(0.0, 1.0);
+        out.push([v[0] as f32, v[1] as f32, v[2] as f32, a as f32]);
+    }
+    out
 }
 
 /// RGBA texels of every atlas page, row-major from the top.
-pub fn render_pages(solution: &Solution, atlas: &Atlas) -> Vec<Vec<[f32; 4]>> {
+pub fn render_pages(
+    solution: &Solution,
+    surfaces: &[Surface],
+    atlas: &Atlas,
+) -> Vec<Vec<[f32; 4]>> {
     let mut pages: Vec<Vec<[f32; 4]>> = atlas
         .pages
         .iter()
         .map(|p| vec![[0.0; 4]; (p.width * p.height) as usize])
         .collect();
-    // Evaluate each root's block (rectangle plus gutter) in parallel, then copy.
-    let blocks: Vec<(usize, Vec<[f32; 4]>)> = (0..solution.roots.len())
-        .into_par_iter()
-        .map(|i| {
-            let r = atlas.rects[i];
-            let shape = solution.roots[i].shape;
-            let (bw, bh) = (r.w + 2 * GUTTER, r.h + 2 * GUTTER);
-            let mut block = Vec::with_capacity((bw * bh) as usize);
-            for by in 0..bh {
-                for bx in 0..bw {
-                    let (ti, tj) = (bx as f64 - GUTTER as f64, by as f64 - GUTTER as f64);
-                    let (s0, s1) = (ti / r.w as f64, (ti + 1.0) / r.w as f64);
-                    let (t0, t1) = (tj / r.h as f64, (tj + 1.0) / r.h as f64);
-                    let centre = DVec2::new(0.5 * (s0 + s1), 0.5 * (t0 + t1));
-                    let v = solution.value_at(i, clamp_to_shape(shape, centre));
-                    let a = texel_coverage(shape, s0, s1, t0, t1);
-                    block.push([v[0] as f32, v[1] as f32, v[2] as f32, a as f32]);
-                }
-            }
-            (i, block)
-        })
+    let blocks: Vec<Vec<[f32; 4]>> = surfaces
+        .par_iter()
+        .zip(atlas.rects.par_iter())
+        .map(|(surface, rect)| render_surface(solution, surface, *rect))
         .collect();
-    for (i, block) in blocks {
-        let r = atlas.rects[i];
+    for (block, r) in blocks.into_iter().zip(&atlas.rects) {
         let page = &mut pages[r.page as usize];
         let width = atlas.pages[r.page as usize].width;
         let bw = r.w + 2 * GUTTER;
@@ -290,8 +348,27 @@ pub fn convergence_csv(rows: &[Progress]) -> String {
     s
 }
 
-fn frame_json(root: &ElementRoot) -> Value {
-    json!({"origin": v3(root.frame.origin), "u": v3(root.frame.u), "v": v3(root.frame.v)})
+fn frame_json(frame: &Frame) -> Value {
+    json!({"origin": v3(frame.origin), "u": v3(frame.u), "v": v3(frame.v)})
+}
+
+/// Area-weighted mean of the requested quantity over a surface's roots.
+fn surface_mean(solution: &Solution, surface: &Surface) -> [f64; 3] {
+    let mut sum = [0.0; 3];
+    let mut area = 0.0;
+    for i in surface.roots.clone() {
+        let a = solution.roots[i].area_m2;
+        let m = solution.mean_value(i);
+        for c in 0..3 {
+            sum[c] += a * m[c];
+        }
+        area += a;
+    }
+    if area > 0.0 {
+        sum.map(|x| x / area)
+    } else {
+        sum
+    }
 }
 
 /// Writes every output of a solve to `dir` and returns the result.json document.
@@ -303,11 +380,12 @@ pub fn write_outputs(
     params: &JobParams,
     options: &OutputOptions,
 ) -> std::io::Result<Value> {
+    let frames: Vec<Frame> = prepared.surfaces.iter().map(|s| s.frame).collect();
     let density = options
         .texels_per_meter
-        .unwrap_or_else(|| default_density(&solution.roots));
-    let atlas = Atlas::pack(&solution.roots, density);
-    let pages = render_pages(solution, &atlas);
+        .unwrap_or_else(|| default_density(&frames));
+    let atlas = Atlas::pack(&frames, density);
+    let pages = render_pages(solution, &prepared.surfaces, &atlas);
     let mut page_json = Vec::new();
     for (n, (texels, page)) in pages.iter().zip(&atlas.pages).enumerate() {
         let name = page_file_name(n);
@@ -330,17 +408,16 @@ pub fn write_outputs(
             &preview_png(texels, page.width, page.height)?,
         )?;
     }
-    let faces: Vec<Value> = solution
-        .roots
+    let faces: Vec<Value> = prepared
+        .surfaces
         .iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let face = &prepared.faces.faces[r.face.0 as usize];
-            let rect = atlas.rects[i];
+        .zip(&atlas.rects)
+        .map(|(surface, rect)| {
+            let face = &prepared.faces.faces[surface.face.0 as usize];
             json!({
-                "id": r.face.0, "side": r.side.as_str(), "material": r.material, "area": face.area_m2,
-                "frame": frame_json(r), "kind": face.kind.as_str(),
-                "mean_radiance": solution.mean_value(i),
+                "id": surface.face.0, "side": surface.side.as_str(), "material": face.material,
+                "area": surface.area_m2, "frame": frame_json(&surface.frame), "kind": surface.kind.as_str(),
+                "mean_radiance": surface_mean(solution, surface),
                 "atlas": {"page": rect.page, "x": rect.x, "y": rect.y, "w": rect.w, "h": rect.h},
             })
         })
@@ -349,7 +426,7 @@ pub fn write_outputs(
     let mut warnings = scene.warnings.clone();
     if params.domain == crate::job::DomainMode::Extended {
         warnings.push(
-            "extended domains are not built yet: every face is a native triangle in this version"
+            "extended domains are not built yet: faces that are neither triangles nor parallelograms are tessellated in this version"
                 .into(),
         );
     }
@@ -362,7 +439,7 @@ pub fn write_outputs(
     let result = json!({
         "scene": {
             "triangles": scene.triangles.len(), "faces": prepared.faces.faces.len(),
-            "emitters": solution.roots.iter().filter(|r| r.exitance.iter().any(|&e| e > 0.0)).count(),
+            "emitters": prepared.faces.faces.iter().filter(|f| scene.materials[f.material as usize].is_emissive()).count(),
             "lights": scene.lights.len(),
             "area": prepared.faces.faces.iter().map(|f| f.area_m2).sum::<f64>(),
         },
@@ -385,18 +462,15 @@ pub fn write_outputs(
 }
 
 /// The `faces --json` document.
-pub fn faces_json(faces: &FaceSet, roots: &[ElementRoot]) -> Value {
+pub fn faces_json(faces: &FaceSet, surfaces: &[Surface]) -> Value {
     let list: Vec<Value> = faces
         .faces
         .iter()
         .map(|f| {
-            let root = roots.iter().find(|r| r.face == f.id && r.side == crate::domain::Side::Front);
-            let domain = root.map(|r| {
-                let area = match r.shape {
-                    Shape::Triangle => 0.5 * r.frame.cross().length(),
-                    Shape::Parallelogram => r.frame.cross().length(),
-                };
-                json!({"origin": v3(r.frame.origin), "u": v3(r.frame.u), "v": v3(r.frame.v), "area": area})
+            let surface = surfaces.iter().find(|s| s.face == f.id && s.side == Side::Front);
+            let domain = surface.map(|s| {
+                json!({"origin": v3(s.frame.origin), "u": v3(s.frame.u), "v": v3(s.frame.v),
+                    "area": s.domain_area_m2()})
             });
             json!({
                 "id": f.id.0, "material": f.material, "double_sided": f.double_sided, "kind": f.kind.as_str(),
@@ -414,39 +488,44 @@ pub fn faces_json(faces: &FaceSet, roots: &[ElementRoot]) -> Value {
 mod tests {
     use super::*;
 
+    fn unit_triangle() -> Vec<DVec2> {
+        vec![
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(0.0, 1.0),
+        ]
+    }
+
     #[test]
-    fn triangle_texel_coverage_matches_geometry() {
-        // A texel straddling the hypotenuse symmetrically is half covered.
-        let c = texel_coverage(Shape::Triangle, 0.45, 0.55, 0.45, 0.55);
-        assert!((c - 0.5).abs() < 1e-12, "{c}");
-        assert_eq!(texel_coverage(Shape::Triangle, 0.1, 0.2, 0.1, 0.2), 1.0);
-        assert_eq!(texel_coverage(Shape::Triangle, 0.8, 0.9, 0.8, 0.9), 0.0);
-        assert_eq!(
-            texel_coverage(Shape::Parallelogram, -0.1, 0.0, 0.2, 0.3),
-            0.0
-        );
-        // Summed over a grid, coverage integrates the triangle's area (half the square).
+    fn box_coverage_of_a_triangle_matches_geometry() {
+        let tri = unit_triangle();
+        // A box straddling the hypotenuse symmetrically is half covered.
+        assert!((box_in_convex_area(0.45, 0.55, 0.45, 0.55, &tri) / 0.01 - 0.5).abs() < 1e-12);
+        assert!((box_in_convex_area(0.1, 0.2, 0.1, 0.2, &tri) / 0.01 - 1.0).abs() < 1e-12);
+        assert_eq!(box_in_convex_area(0.8, 0.9, 0.8, 0.9, &tri), 0.0);
+        // Either orientation.
+        let mut rev = tri.clone();
+        rev.reverse();
+        assert!((box_in_convex_area(0.45, 0.55, 0.45, 0.55, &rev) / 0.01 - 0.5).abs() < 1e-12);
+        // Summed over a grid, coverage integrates the triangle's area.
         let n = 37;
         let mut sum = 0.0;
         for i in 0..n {
             for j in 0..n {
                 let (s0, t0) = (i as f64 / n as f64, j as f64 / n as f64);
-                sum += texel_coverage(
-                    Shape::Triangle,
-                    s0,
-                    s0 + 1.0 / n as f64,
-                    t0,
-                    t0 + 1.0 / n as f64,
-                );
+                sum += box_in_convex_area(s0, s0 + 1.0 / n as f64, t0, t0 + 1.0 / n as f64, &tri);
             }
         }
-        assert!((sum / (n * n) as f64 - 0.5).abs() < 1e-12);
+        assert!((sum - 0.5).abs() < 1e-12);
     }
 
     #[test]
-    fn clamp_to_shape_lands_inside() {
-        let p = clamp_to_shape(Shape::Triangle, DVec2::new(0.9, 0.7));
-        assert!(p.x + p.y <= 1.0 + 1e-12 && p.x >= 0.0 && p.y >= 0.0);
-        assert!((p - DVec2::new(0.6, 0.4)).length() < 1e-12);
+    fn point_in_convex_either_orientation() {
+        let tri = unit_triangle();
+        assert!(point_in_convex(DVec2::new(0.2, 0.2), &tri));
+        assert!(!point_in_convex(DVec2::new(0.6, 0.6), &tri));
+        let mut rev = tri;
+        rev.reverse();
+        assert!(point_in_convex(DVec2::new(0.2, 0.2), &rev));
     }
 }

@@ -5,7 +5,6 @@
 //! point's projection (within the same tolerance); the nearest such root wins. A point on the back
 //! of a single-sided face gets 0 in radiance (it has no radiosity side there).
 
-use crate::domain::{ElementRoot, Shape};
 use crate::solver::{Quantity, Solution};
 use glam::{DVec2, DVec3};
 use serde::{Deserialize, Serialize};
@@ -53,35 +52,6 @@ pub fn parse_probes(bytes: &[u8]) -> Result<Vec<ProbePoint>, String> {
     Ok(probes)
 }
 
-/// Reference coordinates of `x` in `root`'s frame, with the distance outside its shape.
-fn locate_in(root: &ElementRoot, x: DVec3) -> (DVec2, f64, f64) {
-    let f = &root.frame;
-    let n = root.normal;
-    let plane_distance = n.dot(x - f.origin);
-    let q = x - n * plane_distance - f.origin;
-    // Solve q = s u + t v in the plane (normal equations).
-    let (uu, uv, vv) = (f.u.dot(f.u), f.u.dot(f.v), f.v.dot(f.v));
-    let (qu, qv) = (q.dot(f.u), q.dot(f.v));
-    let det = uu * vv - uv * uv;
-    let s = (qu * vv - qv * uv) / det;
-    let t = (qv * uu - qu * uv) / det;
-    let st = DVec2::new(s, t);
-    let inside = match root.shape {
-        Shape::Parallelogram => st.clamp(DVec2::ZERO, DVec2::ONE),
-        Shape::Triangle => {
-            let c = st.max(DVec2::ZERO);
-            if c.x + c.y <= 1.0 {
-                c
-            } else {
-                let d = 0.5 * (c.x + c.y - 1.0);
-                (c - DVec2::splat(d)).clamp(DVec2::ZERO, DVec2::ONE)
-            }
-        }
-    };
-    let outside = (f.point(inside) - f.point(st)).length();
-    (inside, plane_distance.abs(), outside)
-}
-
 /// Evaluates the requested quantity at every probe.
 pub fn evaluate_probes(
     solution: &Solution,
@@ -96,7 +66,7 @@ pub fn evaluate_probes(
             let n = DVec3::from(pr.n).normalize();
             let mut best: Option<(f64, usize, DVec2, bool)> = None;
             for (i, r) in solution.roots.iter().enumerate() {
-                let (st, dist, outside) = locate_in(r, x);
+                let (st, dist, outside) = r.locate(x);
                 if dist > tol || outside > tol {
                     continue;
                 }
