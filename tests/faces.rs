@@ -688,37 +688,6 @@ fn every_shared_scene_merges_into_valid_faces_with_its_area() {
     }
 }
 
-/// Import and face merging time of the largest shared scene. Run it with
-/// `cargo test --release --test faces -- --ignored --nocapture`.
-#[test]
-#[ignore]
-fn time_import_and_merge_of_the_largest_scene() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/scenes/sauerbraten_zdm2/sauerbraten_zdm2.gltf");
-    if !path.exists() {
-        println!("SKIP: {} is absent", path.display());
-        return;
-    }
-    let mut best = (f64::INFINITY, f64::INFINITY);
-    let mut faces = 0;
-    for _ in 0..5 {
-        let t0 = Instant::now();
-        let scene = wavrad::scene::load_scene_from_path(&path, LIMIT).expect("loads");
-        let t1 = Instant::now();
-        let f = merge_planar_faces(&scene);
-        let t2 = Instant::now();
-        faces = f.faces.len();
-        best.0 = best.0.min((t1 - t0).as_secs_f64());
-        best.1 = best.1.min((t2 - t1).as_secs_f64());
-    }
-    println!(
-        "sauerbraten_zdm2: import {:.1} ms, merge {:.1} ms, total {:.1} ms ({faces} faces; best of 5)",
-        best.0 * 1e3,
-        best.1 * 1e3,
-        (best.0 + best.1) * 1e3
-    );
-}
-
 // ---------------------------------------------------------------------------------------------
 // Property test: random polygons with holes survive triangulation, shuffling and re-indexing.
 

@@ -77,7 +77,7 @@ fn index_out_of_range_names_the_primitive() {
     let m = message(&err);
     assert!(matches!(err, SceneError::Invalid(_)), "{err:?}");
     assert!(
-        m.contains("mesh 0 primitive 0") && m.contains("out of range"),
+        m.contains("mesh 0 primitive 0 triangle 0") && m.contains("index 99 is out of range"),
         "{m}"
     );
 }
@@ -95,12 +95,48 @@ fn nan_positions_are_refused_and_every_bad_primitive_is_reported() {
     bin[72 + 4..72 + 8].copy_from_slice(&nan);
     let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap_err();
     let m = message(&err);
-    match &err {
-        SceneError::Invalid(problems) => assert_eq!(problems.len(), 2, "{m}"),
+    // Vertex 0 of each quad is shared by both its triangles: four problems, each at its triangle.
+    let mut places: Vec<&str> = match &err {
+        SceneError::Invalid(problems) => problems.iter().map(|p| p.place.as_str()).collect(),
         other => panic!("expected Invalid, got {other:?}"),
+    };
+    places.sort();
+    assert_eq!(
+        places,
+        [
+            "mesh 0 primitive 0 triangle 0",
+            "mesh 0 primitive 0 triangle 1",
+            "mesh 1 primitive 0 triangle 0",
+            "mesh 1 primitive 0 triangle 1"
+        ],
+        "{m}"
+    );
+    assert!(m.contains("vertex 0 has a NaN"), "{m}");
+}
+
+#[test]
+fn many_bad_triangles_are_listed_up_to_a_cap_then_counted() {
+    // 40 quads in one mesh would be 40 meshes with SceneBuilder; instead corrupt a long index buffer.
+    let (mut doc, mut bin) = glb_parts(&one_quad_glb());
+    // Replace the 6 indices by 120 (40 triangles), every one out of range.
+    let index_offset = 48;
+    bin.truncate(index_offset);
+    for _ in 0..120 {
+        bin.extend_from_slice(&7u32.to_le_bytes());
     }
+    let index_view = doc["accessors"][1]["bufferView"].as_u64().unwrap() as usize;
+    doc["bufferViews"][index_view]["byteLength"] = json!(480);
+    doc["accessors"][1]["count"] = json!(120);
+    doc["buffers"][0]["byteLength"] = json!(bin.len());
+    let err = load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).unwrap_err();
+    let m = message(&err);
+    let SceneError::Invalid(problems) = &err else {
+        panic!("expected Invalid, got {err:?}");
+    };
+    assert_eq!(problems.len(), 17, "{m}");
+    assert_eq!(problems[15].place, "mesh 0 primitive 0 triangle 15");
     assert!(
-        m.contains("mesh 0 primitive 0") && m.contains("mesh 1 primitive 0") && m.contains("NaN"),
+        problems[16].message.starts_with("24 more triangle(s)"),
         "{m}"
     );
 }

@@ -1,15 +1,14 @@
 //! Faces: the planar surfaces the solver sees, built from the scene's triangles.
 //!
-//! Two builders share the [`Face`]/[`FaceSet`] types:
-//! - [`build_faces`] makes one face per non-degenerate triangle (what the solver uses today);
-//! - [`merge_planar_faces`] rebuilds the scene's real surfaces (DESIGN.md section 3): corners are
-//!   welded ([`WELD_REL`]), edges are split at T-junctions, and triangles sharing an edge (or part
-//!   of one), a material and a side mode, and lying in one plane ([`NORMAL_ANGLE_RAD`],
-//!   [`PLANE_OFFSET_REL`]) become one face with an outer ring and holes. Faces that touch only at a
-//!   vertex, and triangles across a non-manifold edge, stay separate. A group whose rings fail
-//!   [`validate_face`] is split back into one face per triangle and counted (`groups_split`).
+//! [`merge_planar_faces`] rebuilds the scene's real surfaces (DESIGN.md section 3): corners are
+//! welded ([`WELD_REL`]), edges are split at T-junctions, and triangles sharing an edge (or part of
+//! one), a material and a side mode, and lying in one plane ([`NORMAL_ANGLE_RAD`],
+//! [`PLANE_OFFSET_REL`]) become one face with an outer ring and holes. Faces that touch only at a
+//! vertex, and triangles across a non-manifold edge, stay separate. A group whose rings fail
+//! [`validate_face`] is split back into one face per triangle and counted (`groups_split`).
+//! [`classify`] names each face a triangle, a parallelogram or one needing an extended domain.
 //!
-//! Invariants of both builders (checked by [`validate_faces`]): face ids are `0..faces.len()`, in
+//! Invariants (checked by [`validate_faces`]): face ids are `0..faces.len()`, in
 //! order of their first triangle (a split group's faces stay together); `normal` is a unit vector;
 //! `outer` is counter-clockwise and every hole clockwise about `normal`; rings never cross (they
 //! may touch at isolated vertices), holes lie inside the outer ring; ring vertices collinear with
@@ -152,46 +151,6 @@ pub fn classify(outer: &[DVec3], holes: &[Vec<DVec3>]) -> FaceKind {
             }
         }
         _ => FaceKind::Extended,
-    }
-}
-
-/// Builds the faces of a scene, one per non-degenerate triangle.
-pub fn build_faces(scene: &Scene) -> FaceSet {
-    let diag = scene.diagonal();
-    let min_area = DEGENERATE_AREA_REL * diag * diag;
-    let mut faces = Vec::new();
-    let mut face_of_triangle = vec![None; scene.triangles.len()];
-    let mut dropped = 0;
-    for (i, t) in scene.triangles.iter().enumerate() {
-        let cross = t.cross();
-        let area = 0.5 * cross.length();
-        if area.is_nan() || area <= min_area {
-            dropped += 1;
-            continue;
-        }
-        let id = FaceId(faces.len() as u32);
-        face_of_triangle[i] = Some(id);
-        faces.push(Face {
-            id,
-            material: t.material,
-            double_sided: scene.material(t).double_sided,
-            kind: FaceKind::Triangle,
-            normal: cross / cross.length(),
-            area_m2: area,
-            outer: t.vertices.to_vec(),
-            holes: Vec::new(),
-            triangles: vec![i as u32],
-            triangulation: vec![t.vertices],
-        });
-    }
-    FaceSet {
-        faces,
-        triangles_in: scene.triangles.len(),
-        degenerate_dropped: dropped,
-        face_of_triangle,
-        tolerance_m: WELD_REL * diag,
-        groups_split: 0,
-        edges_split: 0,
     }
 }
 
@@ -548,7 +507,6 @@ mod tests {
         assert_eq!(f.faces.len(), 1);
         assert_eq!(f.faces[0].kind, FaceKind::Parallelogram);
         assert!(validate_faces(&f).is_empty(), "{:?}", validate_faces(&f));
-        assert!(validate_faces(&build_faces(&s)).is_empty());
     }
 
     #[test]

@@ -290,23 +290,6 @@ fn read_mesh(
         let positions: Vec<DVec3> = positions
             .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
             .collect();
-        let bad: Vec<usize> = positions
-            .iter()
-            .enumerate()
-            .filter(|(_, p)| !p.is_finite())
-            .map(|(i, _)| i)
-            .collect();
-        if !bad.is_empty() {
-            problems.push(Problem {
-                place: place.clone(),
-                message: format!(
-                    "{} vertex position(s) are NaN or infinite (first: vertex {})",
-                    bad.len(),
-                    bad[0]
-                ),
-            });
-            continue;
-        }
         let indices: Vec<u32> = match primitive.indices() {
             Some(_) => match reader.read_indices() {
                 Some(ix) => ix.into_u32().collect(),
@@ -320,17 +303,6 @@ fn read_mesh(
             },
             None => (0..positions.len() as u32).collect(),
         };
-        let n = positions.len() as u32;
-        if let Some((i, &bad)) = indices.iter().enumerate().find(|(_, &ix)| ix >= n) {
-            let count = indices.iter().filter(|&&ix| ix >= n).count();
-            problems.push(Problem {
-                place,
-                message: format!(
-                    "{count} index(es) out of range: index {i} is {bad}, but the primitive has {n} vertices"
-                ),
-            });
-            continue;
-        }
         let tri_indices: Vec<[u32; 3]> = match mode {
             Mode::Triangles => {
                 if indices.len() % 3 != 0 {
@@ -357,6 +329,9 @@ fn read_mesh(
                 .map(|i| [indices[0], indices[i], indices[i + 1]])
                 .collect(),
         };
+        if !triangle_problems(&place, &positions, &tri_indices, problems) {
+            continue;
+        }
         if triangles.len() + tri_indices.len() > max_triangles {
             // The caller reports the limit; don't allocate further.
             triangles.extend(std::iter::repeat_n(
@@ -387,7 +362,7 @@ fn read_mesh(
             }
             if v.iter().any(|p| !p.is_finite()) {
                 problems.push(Problem {
-                    place: format!("{place} triangle {k}"),
+                    place: triangle_place(&place, k),
                     message: "transformed position is not finite (overflow)".into(),
                 });
                 continue;
@@ -403,6 +378,53 @@ fn read_mesh(
             });
         }
     }
+}
+
+/// At most this many problems are listed per primitive; the rest are counted in one more line.
+const MAX_PROBLEMS_PER_PRIMITIVE: usize = 16;
+
+fn triangle_place(primitive_place: &str, triangle: usize) -> String {
+    format!("{primitive_place} triangle {triangle}")
+}
+
+/// Checks every triangle of a primitive: its indices in range and its vertices finite. Each bad
+/// triangle is one [`Problem`] at "mesh M primitive P triangle K" (up to
+/// [`MAX_PROBLEMS_PER_PRIMITIVE`], then a count). Returns whether the primitive is clean. Vertices no
+/// triangle uses are not checked: they cannot reach the solver.
+fn triangle_problems(
+    place: &str,
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    problems: &mut Vec<Problem>,
+) -> bool {
+    let n = positions.len();
+    let mut bad = 0usize;
+    for (k, tri) in triangles.iter().enumerate() {
+        let message = if let Some(&ix) = tri.iter().find(|&&ix| ix as usize >= n) {
+            format!("index {ix} is out of range: the primitive has {n} vertices")
+        } else if let Some(&ix) = tri.iter().find(|&&ix| !positions[ix as usize].is_finite()) {
+            format!("vertex {ix} has a NaN or infinite position")
+        } else {
+            continue;
+        };
+        bad += 1;
+        if bad <= MAX_PROBLEMS_PER_PRIMITIVE {
+            problems.push(Problem {
+                place: triangle_place(place, k),
+                message,
+            });
+        }
+    }
+    if bad > MAX_PROBLEMS_PER_PRIMITIVE {
+        problems.push(Problem {
+            place: place.to_owned(),
+            message: format!(
+                "{} more triangle(s) with out-of-range indices or NaN/infinite positions",
+                bad - MAX_PROBLEMS_PER_PRIMITIVE
+            ),
+        });
+    }
+    bad == 0
 }
 
 fn read_light(
