@@ -154,3 +154,97 @@ fn closed_enclosure_mean_radiosity_balances_emitted_power() {
     enclosure_balance(0.5, 1);
     enclosure_balance(0.9, 2);
 }
+
+/// Does the segment `a -> b` pass through the open box `[lo, hi]`? (Slab test, the test's own.)
+fn segment_hits_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
+    let d = b - a;
+    let (mut t0, mut t1): (f64, f64) = (1e-9, 1.0 - 1e-9);
+    for k in 0..3 {
+        if d[k].abs() < 1e-15 {
+            if a[k] <= lo[k] || a[k] >= hi[k] {
+                return false;
+            }
+        } else {
+            let (ta, tb) = ((lo[k] - a[k]) / d[k], (hi[k] - a[k]) / d[k]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    t0 < t1
+}
+
+/// A slab with a black box standing on its middle, under a large emitter: every quadrature point of
+/// the slab's root element lies under the box, so only the slab's border ring is lit. The solver must
+/// notice the light at the border (rays near the elements' corners) and match a brute-force estimate.
+#[test]
+fn light_reaching_only_the_border_of_an_element_is_found() {
+    let mut b = SceneBuilder::new();
+    let slab = b.material([1.0; 3], [0.0; 3], false);
+    let black = b.material([0.0; 3], [0.0; 3], false);
+    let lamp = b.material([0.0; 3], [1.0; 3], false);
+    let (x, y) = (DVec3::X, DVec3::Y);
+    b.quad(slab, DVec3::new(-0.5, -0.5, 0.0), x, y, 1);
+    let (lo, hi) = (DVec3::new(-0.42, -0.42, 0.0), DVec3::new(0.42, 0.42, 0.3));
+    let (bx, by, bz) = (x * 0.84, y * 0.84, DVec3::Z * 0.3);
+    b.quad(black, lo, bz, by, 1); // normal -x
+    b.quad(black, lo + bx, by, bz, 1); // +x
+    b.quad(black, lo, bx, bz, 1); // -y
+    b.quad(black, lo + by, bz, bx, 1); // +y
+    b.quad(black, lo + bz, bx, by, 1); // top, +z
+    b.quad(lamp, DVec3::new(-2.0, -2.0, 1.0), y * 4.0, x * 4.0, 1); // facing -z
+
+    // Brute force: mean over the slab of the visible form factor to the lamp (radiance, rho 1).
+    let (n, m) = (120, 40);
+    let mut sum = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let p = DVec3::new(
+                -0.5 + (i as f64 + 0.5) / n as f64,
+                -0.5 + (j as f64 + 0.5) / n as f64,
+                0.0,
+            );
+            if p.x.abs() < 0.42 && p.y.abs() < 0.42 {
+                continue;
+            }
+            for k in 0..m {
+                for l in 0..m {
+                    let q = DVec3::new(
+                        -2.0 + 4.0 * (k as f64 + 0.5) / m as f64,
+                        -2.0 + 4.0 * (l as f64 + 0.5) / m as f64,
+                        1.0,
+                    );
+                    if segment_hits_box(p, q, lo, hi) {
+                        continue;
+                    }
+                    let d = q - p;
+                    let r2 = d.length_squared();
+                    sum += d.z * d.z / (std::f64::consts::PI * r2 * r2) * 16.0 / (m * m) as f64;
+                }
+            }
+        }
+    }
+    let expected = sum / (n * n) as f64;
+    // At the default tolerance the lamp's many virtual sub-sources each link to the slab coarsely
+    // (the error budget is per link); 1e-6 resolves the 8 cm ring. M3 converges from below here
+    // (-7 % at 1e-7) and is left out until the solver issue finds why.
+    for order in [1, 2] {
+        let p = SolverParams {
+            tolerance: 1e-6,
+            ..params(order)
+        };
+        let (_, sol) = solve_glb(&b.to_glb(), p);
+        let (mut got, mut area) = (0.0, 0.0);
+        for (i, r) in sol.roots.iter().enumerate() {
+            if r.material == slab {
+                got += sol.mean_value(i)[0] * r.area_m2;
+                area += r.area_m2;
+            }
+        }
+        let got = got / area;
+        println!("M{order}: slab mean radiance {got:.5}, brute force {expected:.5}");
+        assert!(
+            (got - expected).abs() < 0.05 * expected,
+            "M{order}: slab mean radiance {got}, brute force {expected}"
+        );
+    }
+}

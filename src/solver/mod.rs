@@ -386,14 +386,21 @@ impl ShotContext<'_> {
         }
         // A shadow boundary crossing the link: the control points cannot see where it runs, so the
         // whole unoccluded transfer is at stake.
-        if any_visible && any_blocked {
+        let mut partial = any_visible && any_blocked;
+        let threshold = self.threshold;
+        if !partial && err * rp.area <= threshold && unoccluded_max * rp.area > threshold {
+            // The quadrature rays agree, but they sample the interior only: a shadow boundary near
+            // an element's border (a wall standing on a slab, an eave over a wall) slips between
+            // them. Rays between points near the corners of both elements catch it.
+            partial = self.corner_rays_disagree(&rp, rroot, &sp, any_visible);
+        }
+        if partial {
             err = err.max(unoccluded_max);
         }
         let err = err * rp.area;
-        if err > self.threshold {
+        if err > threshold {
             let can_split_r = rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge;
             let can_split_s = src.depth < MAX_DEPTH && sp.min_edge() * 0.5 >= self.min_edge;
-            let partial = any_visible && any_blocked;
             let split_source = can_split_s && (!can_split_r || (partial && sp.area > rp.area));
             if split_source {
                 for child in self.source_children(src) {
@@ -421,6 +428,62 @@ impl ShotContext<'_> {
             }
         }
         rcv.touched = true;
+    }
+}
+
+/// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.
+fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
+    const E: f64 = CORNER_INSET;
+    const SQUARE: [DVec2; 5] = [
+        DVec2::new(E, E),
+        DVec2::new(1.0 - E, E),
+        DVec2::new(1.0 - E, 1.0 - E),
+        DVec2::new(E, 1.0 - E),
+        DVec2::new(0.5, 0.5),
+    ];
+    const TRIANGLE: [DVec2; 4] = [
+        DVec2::new(E, E),
+        DVec2::new(1.0 - 2.0 * E, E),
+        DVec2::new(E, 1.0 - 2.0 * E),
+        DVec2::new(1.0 / 3.0, 1.0 / 3.0),
+    ];
+    match shape {
+        Shape::Parallelogram => &SQUARE,
+        Shape::Triangle => &TRIANGLE,
+    }
+}
+
+/// How far inside an element its corner probe points sit, in reference coordinates: off the
+/// element's border, where rays would graze the surfaces it meets.
+const CORNER_INSET: f64 = 0.02;
+
+impl ShotContext<'_> {
+    /// Do rays between the corner probe points of the receiver and the source disagree with the
+    /// quadrature rays' verdict (`quadrature_visible`: all visible, or all blocked)?
+    fn corner_rays_disagree(
+        &self,
+        rp: &Patch,
+        rroot: &ElementRoot,
+        sp: &Patch,
+        quadrature_visible: bool,
+    ) -> bool {
+        let sroot = &self.roots[self.source_root];
+        let (n_r, n_s) = (rroot.normal, sroot.normal);
+        let ignore = [sroot.face.0, rroot.face.0];
+        for &rs in corner_probe_points(rroot.shape) {
+            let x = rp.point(rs);
+            for &ss in corner_probe_points(sroot.shape) {
+                let y = sp.point(ss);
+                // Only pairs that exchange light count.
+                if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
+                    continue;
+                }
+                if self.visibility.visible(x, y, ignore) != quadrature_visible {
+                    return true;
+                }
+            }
+        }
+        false
     }
 }
 
