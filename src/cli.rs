@@ -300,7 +300,7 @@ fn faces(a: FacesArgs) -> ExitCode {
                 f.area_m2,
                 f.holes.len(),
                 f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
-                f.triangles.len()
+                prepared.faces.source_triangle_count(f)
             );
         }
     }

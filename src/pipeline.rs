@@ -41,11 +41,12 @@ pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
 pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
     let faces = merge_planar_faces(scene);
     let domains = build_domains(scene, &faces, mode);
-    let occluders = scene
-        .triangles
+    // Faces occlude with their own triangulations: the scene's triangles, some cut along contact
+    // lines, with welded corners.
+    let occluders = faces
+        .faces
         .iter()
-        .zip(&faces.face_of_triangle)
-        .filter_map(|(t, f)| f.map(|f| (t.vertices, f.0)));
+        .flat_map(|f| f.triangulation.iter().map(move |t| (*t, f.id.0)));
     let diagonal = scene.diagonal();
     let visibility = Visibility::new(occluders, diagonal);
     Prepared {

@@ -846,3 +846,98 @@ proptest! {
         }
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// Contact lines.
+
+/// A 2 x 2 floor (normal +y, two triangles) and what stands on it.
+fn floor_with(stand: impl FnOnce(&mut SceneBuilder, u32)) -> FaceSet {
+    let mut b = SceneBuilder::new();
+    let floor = b.material([0.5; 3], [0.0; 3], false);
+    let other = b.material([0.3; 3], [0.0; 3], false);
+    b.quad(
+        floor,
+        DVec3::new(-1.0, 0.0, -1.0),
+        DVec3::Z * 2.0,
+        DVec3::X * 2.0,
+        1,
+    );
+    stand(&mut b, other);
+    let scene = load(&b.to_glb());
+    let f = merged(&scene);
+    assert!(validate_faces(&f).is_empty(), "{:?}", validate_faces(&f));
+    let expected: f64 = scene.triangles.iter().map(|t| t.area()).sum();
+    assert!((total_area(&f) - expected).abs() < 1e-9 * expected);
+    f
+}
+
+fn floor_faces(f: &FaceSet) -> Vec<&wavrad::faces::Face> {
+    f.faces.iter().filter(|x| x.material == 0).collect()
+}
+
+#[test]
+fn a_box_standing_on_a_floor_cuts_its_footprint_out() {
+    let f = floor_with(|b, m| {
+        let lo = DVec3::new(-0.25, 0.0, -0.25);
+        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
+        b.quad(m, lo, z, y, 1); // -x
+        b.quad(m, lo + x, y, z, 1); // +x
+        b.quad(m, lo, y, x, 1); // -z
+        b.quad(m, lo + z, x, y, 1); // +z
+        b.quad(m, lo + y, z, x, 1); // top
+    });
+    let floor = floor_faces(&f);
+    assert_eq!(floor.len(), 2, "the floor around the box and its footprint");
+    let around = floor
+        .iter()
+        .find(|x| x.holes.len() == 1)
+        .expect("a floor with a hole");
+    let footprint = floor
+        .iter()
+        .find(|x| x.holes.is_empty())
+        .expect("the footprint");
+    assert!((around.area_m2 - 3.75).abs() < 1e-9);
+    assert!((footprint.area_m2 - 0.25).abs() < 1e-9);
+    assert_eq!(footprint.kind, FaceKind::Parallelogram);
+    assert!(f.triangles_cut > 0);
+    // The footprint's pieces come from the floor's two triangles.
+    assert_eq!(f.source_triangle_count(footprint), 2);
+}
+
+#[test]
+fn a_wall_across_a_floor_splits_it_and_one_ending_inside_does_not() {
+    // Across: the wall's base runs from z = -1 to z = 1 at x = 0.25.
+    let f = floor_with(|b, m| {
+        b.quad(m, DVec3::new(0.25, 0.0, -1.0), DVec3::Z * 2.0, DVec3::Y, 1);
+    });
+    let floor = floor_faces(&f);
+    assert_eq!(floor.len(), 2);
+    let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
+    areas.sort_by(f64::total_cmp);
+    assert!(
+        (areas[0] - 1.5).abs() < 1e-9 && (areas[1] - 2.5).abs() < 1e-9,
+        "{areas:?}"
+    );
+
+    // Ending inside: the base stops at z = 0.5; the floor stays one face with no slit in its rings.
+    let f = floor_with(|b, m| {
+        b.quad(m, DVec3::new(0.25, 0.0, -1.0), DVec3::Z * 1.5, DVec3::Y, 1);
+    });
+    let floor = floor_faces(&f);
+    assert_eq!(floor.len(), 1);
+    assert!(floor[0].holes.is_empty());
+    assert!((floor[0].area_m2 - 4.0).abs() < 1e-9);
+
+    // Hanging under the (single-sided) floor: nothing to cut on its front.
+    let f = floor_with(|b, m| {
+        b.quad(
+            m,
+            DVec3::new(0.25, 0.0, -1.0),
+            DVec3::NEG_Y,
+            DVec3::Z * 2.0,
+            1,
+        );
+    });
+    assert_eq!(floor_faces(&f).len(), 1);
+    assert_eq!(f.triangles_cut, 0);
+}

@@ -615,10 +615,19 @@ async fn a_full_queue_refuses_and_cancelled_jobs_end() {
     // Cancelling the running job stops it at the next shot, then its outputs are written. The
     // CONTRACT's 2 seconds hold on an idle machine (this takes ~0.1 s); the bound here leaves
     // room for a loaded test machine.
-    let progress = get_job(&client, &base, &busy_id).await["progress"]["iterations"]
-        .as_u64()
-        .unwrap();
-    assert!(progress > 0, "the busy job has been shooting");
+    // Wait (bounded) until the busy job has shot at least once, so the cancel lands mid-solve.
+    let started = Instant::now();
+    loop {
+        let job = get_job(&client, &base, &busy_id).await;
+        if job["progress"]["iterations"].as_u64().unwrap_or(0) > 0 {
+            break;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(15),
+            "the busy job never shot: {job}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
     let response = client
         .delete(format!("{base}/v1/jobs/{busy_id}"))
         .send()

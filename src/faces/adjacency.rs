@@ -226,7 +226,16 @@ pub fn compatible(i: usize, j: usize, info: &[TriInfo], welded: &Welded, tol: &T
 }
 
 /// Builds the sub-edges and neighbours of the triangles with `live[t]`.
-pub fn build(welded: &Welded, live: &[bool], info: &[TriInfo], tol: &Tolerances) -> Adjacency {
+///
+/// No two triangles join across a sub-edge lying on one of `barriers` (contact lines, see
+/// `contact`): both its ends within the length tolerance of the same barrier segment.
+pub fn build(
+    welded: &Welded,
+    live: &[bool],
+    info: &[TriInfo],
+    tol: &Tolerances,
+    barriers: &[[DVec3; 2]],
+) -> Adjacency {
     let n = welded.corners.len();
     // 1. Undirected edges.
     let mut edge_of: FastMap<(u32, u32), u32> =
@@ -324,6 +333,30 @@ pub fn build(welded: &Welded, live: &[bool], info: &[TriInfo], tol: &Tolerances)
     }
     chain_start.push(chains.len() as u32);
 
+    // Barrier segments each vertex lies on.
+    let mut on_barrier: FastMap<u32, Vec<u32>> = FastMap::default();
+    for (s, &[a, b]) in barriers.iter().enumerate() {
+        let d = b - a;
+        let len2 = d.length_squared();
+        if len2 == 0.0 {
+            continue;
+        }
+        grid.for_each_near_segment(a, b, cell_m, |v| {
+            let p = welded.positions[v as usize];
+            let t = ((p - a).dot(d) / len2).clamp(0.0, 1.0);
+            if (p - (a + d * t)).length_squared() <= tol2 {
+                let list = on_barrier.entry(v).or_default();
+                if list.last() != Some(&(s as u32)) {
+                    list.push(s as u32);
+                }
+            }
+        });
+    }
+    let is_barrier = |u: u32, v: u32| match (on_barrier.get(&u), on_barrier.get(&v)) {
+        (Some(a), Some(b)) => a.iter().any(|s| b.contains(s)),
+        _ => false,
+    };
+
     let mut adj = Adjacency {
         chain_start,
         chains,
@@ -366,7 +399,7 @@ pub fn build(welded: &Welded, live: &[bool], info: &[TriInfo], tol: &Tolerances)
         }
         let group = &subs[start..end];
         start = end;
-        if group.len() < 2 {
+        if group.len() < 2 || is_barrier(group[0].0, group[0].1) {
             continue;
         }
         if group.len() == 2 {

@@ -23,6 +23,7 @@
 //! (exact projection and predicates).
 
 mod adjacency;
+pub mod contact;
 mod geom;
 mod rings;
 pub mod triangulate;
@@ -74,7 +75,8 @@ pub struct Face {
     pub outer: Vec<DVec3>,
     /// Hole rings, clockwise about `normal`.
     pub holes: Vec<Vec<DVec3>>,
-    /// Indices into `Scene::triangles` of the triangles merged into this face, ascending.
+    /// Indices of the pieces merged into this face, ascending: scene triangles, or parts of them
+    /// cut along contact lines (`FaceSet::piece_source` maps a piece to its scene triangle).
     pub triangles: Vec<u32>,
     /// The triangles of `triangles` (same order) with welded corners, counter-clockwise about
     /// `normal`: a triangulation of the rings' polygon whose vertices may include T-junction and
@@ -88,16 +90,21 @@ pub struct FaceSet {
     pub faces: Vec<Face>,
     pub triangles_in: usize,
     pub degenerate_dropped: usize,
-    /// For each scene triangle, the face it belongs to (`None` when dropped as degenerate).
+    /// For each piece (see `piece_source`), the face it belongs to (`None` when dropped as
+    /// degenerate).
     pub face_of_triangle: Vec<Option<FaceId>>,
+    /// The scene's triangles after cutting along contact lines ([`contact`]), the "pieces": for
+    /// each piece, the index of its scene triangle. Without contacts, the identity.
+    pub piece_source: Vec<u32>,
+    /// Scene triangles cut along contact lines.
+    pub triangles_cut: usize,
     /// The length tolerance the faces were built with (weld, T-junctions, collinear vertices,
     /// plane offset), metres: `WELD_REL * diagonal`. The validator's tolerances derive from it.
     pub tolerance_m: f64,
     /// Merged groups whose rings were invalid (overlapping or folded coplanar triangles) and that
-    /// were split back into one face per triangle. Always 0 for [`build_faces`].
+    /// were split back into one face per triangle.
     pub groups_split: usize,
-    /// Edges split at vertices lying on them (T-junctions, collinear overlaps). Always 0 for
-    /// [`build_faces`].
+    /// Edges split at vertices lying on them (T-junctions, collinear overlaps).
     pub edges_split: usize,
 }
 
@@ -154,24 +161,52 @@ pub fn classify(outer: &[DVec3], holes: &[Vec<DVec3>]) -> FaceKind {
     }
 }
 
+impl FaceSet {
+    /// Number of distinct scene triangles with a piece in `face`.
+    pub fn source_triangle_count(&self, face: &Face) -> usize {
+        let mut sources: Vec<u32> = face
+            .triangles
+            .iter()
+            .filter_map(|&p| self.piece_source.get(p as usize).copied())
+            .collect();
+        sources.dedup();
+        sources.len()
+    }
+}
+
 /// Merges the scene's triangles into planar faces with holes (DESIGN.md section 3).
 ///
 /// A triangle is dropped (and counted in `degenerate_dropped`) when its area is at most
 /// [`DEGENERATE_AREA_REL`] times the squared diagonal, or when welding makes it flat (two corners
 /// welded together, or a corner within the weld tolerance of the opposite edge).
 pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
-    let n = scene.triangles.len();
     let diag = scene.diagonal();
     let tol = Tolerances {
         length_m: WELD_REL * diag,
         plane_m: PLANE_OFFSET_REL * diag,
         angle_rad: NORMAL_ANGLE_RAD,
     };
+    let min_area = DEGENERATE_AREA_REL * diag * diag;
+    let cut = contact::cut_at_contacts(
+        &scene.triangles,
+        |t| {
+            scene
+                .materials
+                .get(t.material as usize)
+                .is_some_and(|m| m.double_sided)
+        },
+        &tol,
+        diag,
+        min_area,
+    );
+    let n = cut.pieces.len();
     let mut set = FaceSet {
         faces: Vec::new(),
-        triangles_in: n,
+        triangles_in: scene.triangles.len(),
         degenerate_dropped: 0,
         face_of_triangle: vec![None; n],
+        piece_source: cut.source,
+        triangles_cut: cut.triangles_cut,
         tolerance_m: tol.length_m,
         groups_split: 0,
         edges_split: 0,
@@ -180,8 +215,15 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
         set.degenerate_dropped = n;
         return set;
     }
+    // From here on, "triangles" are the pieces.
+    let scene = &Scene {
+        triangles: cut.pieces,
+        materials: scene.materials.clone(),
+        lights: Vec::new(),
+        bounds: scene.bounds,
+        warnings: Vec::new(),
+    };
     let welded = weld::weld(&scene.triangles, tol.length_m);
-    let min_area = DEGENERATE_AREA_REL * diag * diag;
 
     // Live triangles and their planes.
     let mut live = vec![false; n];
@@ -228,7 +270,7 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
     set.degenerate_dropped = live.iter().filter(|&&l| !l).count();
 
     // Region growing from the largest triangles, across matched edges, within the group's plane.
-    let adj = adjacency::build(&welded, &live, &info, &tol);
+    let adj = adjacency::build(&welded, &live, &info, &tol, &cut.segments);
     set.edges_split = adj.split_edges;
     let mut order: Vec<u32> = (0..n as u32).filter(|&t| live[t as usize]).collect();
     order.sort_by(|&x, &y| {

@@ -60,12 +60,22 @@ pub fn validate_faces(faces: &FaceSet) -> Vec<FaceProblem> {
         vertex: None,
         message,
     };
-    if faces.face_of_triangle.len() != faces.triangles_in {
+    let pieces = faces.piece_source.len();
+    if faces.face_of_triangle.len() != pieces {
         out.push(set_problem(format!(
-            "face_of_triangle has {} entries for {} triangles",
+            "face_of_triangle has {} entries for {pieces} pieces",
             faces.face_of_triangle.len(),
-            faces.triangles_in
         )));
+    }
+    if faces.piece_source.windows(2).any(|w| w[0] > w[1])
+        || faces
+            .piece_source
+            .last()
+            .is_some_and(|&s| s as usize >= faces.triangles_in)
+    {
+        out.push(set_problem(
+            "piece_source is not ascending within the scene's triangles".into(),
+        ));
     }
     let unassigned = faces
         .face_of_triangle
@@ -103,10 +113,10 @@ pub fn validate_faces(faces: &FaceSet) -> Vec<FaceProblem> {
         }
         out.extend(validate_face(face, faces.tolerance_m));
     }
-    if in_faces + faces.degenerate_dropped != faces.triangles_in {
+    if in_faces + faces.degenerate_dropped != pieces {
         out.push(set_problem(format!(
-            "{in_faces} triangles in faces + {} dropped != {} triangles in",
-            faces.degenerate_dropped, faces.triangles_in
+            "{in_faces} pieces in faces + {} dropped != {pieces} pieces",
+            faces.degenerate_dropped
         )));
     }
     out

@@ -476,11 +476,12 @@ pub fn faces_json(faces: &FaceSet, surfaces: &[Surface]) -> Value {
                 "id": f.id.0, "material": f.material, "double_sided": f.double_sided, "kind": f.kind.as_str(),
                 "area": f.area_m2, "holes": f.holes.len(),
                 "vertices": f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
-                "triangles": f.triangles.len(), "normal": v3(f.normal), "domain": domain,
+                "triangles": faces.source_triangle_count(f), "normal": v3(f.normal), "domain": domain,
             })
         })
         .collect();
     json!({"triangles_in": faces.triangles_in, "degenerate_dropped": faces.degenerate_dropped,
+        "triangles_cut_at_contacts": faces.triangles_cut,
         "faces_out": faces.faces.len(), "faces": list})
 }
 

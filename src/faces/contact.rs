@@ -1,0 +1,540 @@
+//! Contact lines: where one surface stands on another (a box on a floor, a wall on a slab), the
+//! lower surface's radiosity jumps along the line they meet on, and the part of it under the
+//! upper surface's footprint is usually closed off and dark. The triangles of the lower surface
+//! rarely have edges there. This module finds those lines and cuts the triangles along them, so
+//! that face merging can keep the two sides apart (DESIGN.md section 3: the real surfaces).
+//!
+//! Owns [`cut_at_contacts`] and [`ContactCut`]. A *contact segment* of a triangle `T` is an edge
+//! of another triangle `S` that lies in `T`'s plane (both ends within the plane tolerance), crosses
+//! `T`'s interior (not only its border), and whose triangle `S` rises on `T`'s radiosity side (either
+//! side when `T` is double-sided). `T` is cut by the line of each of its contact segments into
+//! convex pieces, which are fanned into triangles.
+//!
+//! Invariants: the pieces of a triangle tile it exactly (their areas sum to its area, up to
+//! rounding), keep its material, source and winding; a cut never makes a piece corner closer than
+//! the length tolerance to a line it was cut on (such corners count as on the line), so no cut
+//! produces slivers below the tolerance; triangles without contacts, and degenerate triangles, are
+//! passed through unchanged; the order of pieces follows the order of their scene triangles.
+
+use super::adjacency::Tolerances;
+use super::geom::{FastMap, FastSet};
+use crate::scene::Triangle;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// The scene's triangles cut along contact lines.
+#[derive(Debug, Clone, Default)]
+pub struct ContactCut {
+    /// The pieces: every scene triangle, or the triangles it was cut into, in scene order.
+    pub pieces: Vec<Triangle>,
+    /// For each piece, the index of its scene triangle.
+    pub source: Vec<u32>,
+    /// Every contact segment found (world frame), the lines pieces must not be merged across.
+    pub segments: Vec<[DVec3; 2]>,
+    /// Number of scene triangles that were cut.
+    pub triangles_cut: usize,
+}
+
+/// A cell of [`LevelGrid`]: level, then integer coordinates.
+type Cell = (u8, i64, i64, i64);
+
+/// Triangles by cell, on levels of cells growing 4x per level: each triangle is stored on the
+/// finest level whose cells are at least as large as its bounding box (so in at most 8 cells),
+/// and a segment query walks every level along the segment. Cost per query: the segment's length
+/// in cells of each level, whatever the mix of triangle sizes.
+struct LevelGrid {
+    base_m: f64,
+    levels: u8,
+    cells: FastMap<Cell, Vec<u32>>,
+}
+
+impl LevelGrid {
+    fn new(
+        triangles: &[Triangle],
+        planes: &[Option<(DVec3, f64)>],
+        pad: DVec3,
+        diagonal: f64,
+    ) -> Self {
+        let bounds = |t: &Triangle| {
+            let [a, b, c] = t.vertices;
+            (a.min(b).min(c) - pad, a.max(b).max(c) + pad)
+        };
+        let mut extents: Vec<f64> = triangles
+            .iter()
+            .zip(planes)
+            .filter(|(_, p)| p.is_some())
+            .map(|(t, _)| {
+                let (lo, hi) = bounds(t);
+                (hi - lo).max_element()
+            })
+            .collect();
+        let mid = extents.len() / 2;
+        let median = if extents.is_empty() {
+            diagonal
+        } else {
+            *extents.select_nth_unstable_by(mid, f64::total_cmp).1
+        };
+        let base_m = median.max(diagonal * 1e-4);
+        let mut grid = LevelGrid {
+            base_m,
+            levels: 1,
+            cells: FastMap::default(),
+        };
+        for (i, t) in triangles.iter().enumerate() {
+            if planes[i].is_none() {
+                continue;
+            }
+            let (lo, hi) = bounds(t);
+            let extent = (hi - lo).max_element();
+            let mut level = 0u8;
+            while grid.cell_m(level) < extent && level < 30 {
+                level += 1;
+            }
+            grid.levels = grid.levels.max(level + 1);
+            let (a, b) = (grid.cell(level, lo), grid.cell(level, hi));
+            for x in a.1..=b.1 {
+                for y in a.2..=b.2 {
+                    for z in a.3..=b.3 {
+                        grid.cells
+                            .entry((level, x, y, z))
+                            .or_default()
+                            .push(i as u32);
+                    }
+                }
+            }
+        }
+        grid
+    }
+
+    fn cell_m(&self, level: u8) -> f64 {
+        self.base_m * 4f64.powi(level as i32)
+    }
+
+    fn cell(&self, level: u8, p: DVec3) -> Cell {
+        let inv = 1.0 / self.cell_m(level);
+        (
+            level,
+            (p.x * inv).floor() as i64,
+            (p.y * inv).floor() as i64,
+            (p.z * inv).floor() as i64,
+        )
+    }
+
+    /// Calls `f` with every triangle whose padded box may touch the segment `a b` (some more than
+    /// once).
+    fn for_each_near_segment(&self, a: DVec3, b: DVec3, pad: DVec3, mut f: impl FnMut(u32)) {
+        let d = b - a;
+        for level in 0..self.levels {
+            let cell_m = self.cell_m(level);
+            let steps = ((d.abs().max_element() / cell_m).ceil() as usize).max(1);
+            for s in 0..steps {
+                let p0 = a + d * (s as f64 / steps as f64);
+                let p1 = a + d * ((s + 1) as f64 / steps as f64);
+                let lo = self.cell(level, p0.min(p1) - pad);
+                let hi = self.cell(level, p0.max(p1) + pad);
+                for x in lo.1..=hi.1 {
+                    for y in lo.2..=hi.2 {
+                        for z in lo.3..=hi.3 {
+                            if let Some(list) = self.cells.get(&(level, x, y, z)) {
+                                list.iter().for_each(|&t| f(t));
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Finds the contact segments of every triangle and cuts the triangles along them.
+/// `min_area` is the degenerate-area threshold: smaller triangles are passed through uncut.
+pub fn cut_at_contacts(
+    triangles: &[Triangle],
+    double_sided: impl Fn(&Triangle) -> bool + Sync,
+    tol: &Tolerances,
+    diagonal: f64,
+    min_area: f64,
+) -> ContactCut {
+    let n = triangles.len();
+    let identity = |triangles: &[Triangle]| ContactCut {
+        pieces: triangles.to_vec(),
+        source: (0..triangles.len() as u32).collect(),
+        segments: Vec::new(),
+        triangles_cut: 0,
+    };
+    if n < 2 || !(diagonal > 0.0 && diagonal.is_finite()) {
+        return identity(triangles);
+    }
+    // Planes of the non-degenerate triangles.
+    let planes: Vec<Option<(DVec3, f64)>> = triangles
+        .iter()
+        .map(|t| {
+            let cross = t.cross();
+            let area = 0.5 * cross.length();
+            (area > min_area).then(|| {
+                let normal = cross / cross.length();
+                (normal, normal.dot(t.vertices[0]))
+            })
+        })
+        .collect();
+
+    // Triangles by cell of a multi-level grid over their (padded) bounding boxes.
+    let pad = DVec3::splat(tol.plane_m.max(tol.length_m));
+    let grid = LevelGrid::new(triangles, &planes, pad, diagonal);
+    // Contact segments per triangle, found in parallel over the standing triangles' edges.
+    let found: Vec<(u32, [DVec3; 2])> = (0..n)
+        .into_par_iter()
+        .filter(|&s| planes[s].is_some())
+        .fold(
+            || (Vec::new(), Vec::new()),
+            |(mut out, mut candidates): (Vec<(u32, [DVec3; 2])>, Vec<u32>), s| {
+                let st = &triangles[s];
+                for k in 0..3 {
+                    let (p, q, r) = (
+                        st.vertices[k],
+                        st.vertices[(k + 1) % 3],
+                        st.vertices[(k + 2) % 3],
+                    );
+                    candidates.clear();
+                    grid.for_each_near_segment(p, q, pad, |t| {
+                        // Cheapest test first: both ends in t's plane.
+                        if let Some((normal, offset)) = planes[t as usize] {
+                            if (normal.dot(p) - offset).abs() <= tol.plane_m
+                                && (normal.dot(q) - offset).abs() <= tol.plane_m
+                            {
+                                candidates.push(t);
+                            }
+                        }
+                    });
+                    candidates.sort_unstable();
+                    candidates.dedup();
+                    for &t in &candidates {
+                        let ti = t as usize;
+                        let Some((normal, offset)) = planes[ti] else {
+                            continue;
+                        };
+                        let tt = &triangles[ti];
+                        if ti != s && is_contact(p, q, r, tt, normal, offset, double_sided(tt), tol)
+                        {
+                            out.push((t, [p, q]));
+                        }
+                    }
+                }
+                (out, candidates)
+            },
+        )
+        .map(|(out, _)| out)
+        .reduce(Vec::new, |mut a, mut b| {
+            a.append(&mut b);
+            a
+        });
+    let mut contacts: FastMap<u32, Vec<[DVec3; 2]>> = FastMap::default();
+    let mut segments: Vec<[DVec3; 2]> = Vec::with_capacity(found.len());
+    let mut unique: FastSet<[u64; 6]> = FastSet::default();
+    for (t, seg) in found {
+        contacts.entry(t).or_default().push(seg);
+        let [p, q] = seg;
+        let key = [p.x, p.y, p.z, q.x, q.y, q.z].map(f64::to_bits);
+        if unique.insert(key) {
+            segments.push(seg);
+        }
+    }
+    if contacts.is_empty() {
+        return identity(triangles);
+    }
+
+    let mut cut = ContactCut {
+        pieces: Vec::with_capacity(n + 4 * contacts.len()),
+        source: Vec::with_capacity(n + 4 * contacts.len()),
+        segments,
+        triangles_cut: 0,
+    };
+    for (i, t) in triangles.iter().enumerate() {
+        let (Some(lines), Some((normal, _))) = (contacts.get(&(i as u32)), planes[i]) else {
+            cut.pieces.push(*t);
+            cut.source.push(i as u32);
+            continue;
+        };
+        let polygons = split_convex(t.vertices.to_vec(), normal, lines, tol.length_m);
+        if polygons.len() > 1 {
+            cut.triangles_cut += 1;
+        }
+        for poly in polygons {
+            for tri in fan(&poly) {
+                cut.pieces.push(Triangle {
+                    vertices: tri,
+                    ..*t
+                });
+                cut.source.push(i as u32);
+            }
+        }
+    }
+    cut
+}
+
+/// Is the edge `p q` of a triangle whose third corner is `r` a contact segment of triangle `t`
+/// (plane `normal . x = offset`)?
+#[allow(clippy::too_many_arguments)]
+fn is_contact(
+    p: DVec3,
+    q: DVec3,
+    r: DVec3,
+    t: &Triangle,
+    normal: DVec3,
+    offset: f64,
+    double_sided: bool,
+    tol: &Tolerances,
+) -> bool {
+    let h = |x: DVec3| normal.dot(x) - offset;
+    if h(p).abs() > tol.plane_m || h(q).abs() > tol.plane_m {
+        return false;
+    }
+    // The other triangle must rise off the plane on a radiosity side.
+    let hr = h(r);
+    if !(hr > tol.plane_m || (double_sided && hr < -tol.plane_m)) {
+        return false;
+    }
+    // Clip the segment to the triangle (in its plane); it must cross the interior.
+    let d = q - p;
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    let len = d.length();
+    if len <= tol.length_m {
+        return false;
+    }
+    for k in 0..3 {
+        let a = t.vertices[k];
+        let b = t.vertices[(k + 1) % 3];
+        // Inward normal of edge a b within the plane.
+        let m = normal.cross(b - a);
+        let m = m / m.length();
+        let f0 = m.dot(p - a);
+        let fd = m.dot(d);
+        // Points with m . (x - a) >= tol are strictly inside this edge.
+        if fd.abs() < 1e-300 {
+            if f0 < tol.length_m {
+                return false;
+            }
+        } else {
+            let tc = (tol.length_m - f0) / fd;
+            if fd > 0.0 {
+                t0 = t0.max(tc);
+            } else {
+                t1 = t1.min(tc);
+            }
+        }
+    }
+    (t1 - t0) * len > tol.length_m
+}
+
+/// Splits the convex polygon `poly` (counter-clockwise about `normal`) by the line of every
+/// segment in `lines`; returns the convex pieces. Corners within `eps` of a line count as on it.
+fn split_convex(
+    poly: Vec<DVec3>,
+    normal: DVec3,
+    lines: &[[DVec3; 2]],
+    eps: f64,
+) -> Vec<Vec<DVec3>> {
+    let mut pieces = vec![poly];
+    for &[p, q] in lines {
+        let m = normal.cross(q - p);
+        let len = m.length();
+        if len <= 0.0 {
+            continue;
+        }
+        let m = m / len;
+        let mut next = Vec::with_capacity(pieces.len() + 1);
+        for piece in pieces {
+            let dist: Vec<f64> = piece.iter().map(|&x| m.dot(x - p)).collect();
+            let above = dist.iter().any(|&d| d > eps);
+            let below = dist.iter().any(|&d| d < -eps);
+            if !(above && below) {
+                next.push(piece);
+                continue;
+            }
+            let (mut left, mut right) = (Vec::new(), Vec::new());
+            for i in 0..piece.len() {
+                let j = (i + 1) % piece.len();
+                let (a, b) = (piece[i], piece[j]);
+                let (da, db) = (dist[i], dist[j]);
+                let side_a = side(da, eps);
+                if side_a >= 0 {
+                    left.push(a);
+                }
+                if side_a <= 0 {
+                    right.push(a);
+                }
+                let side_b = side(db, eps);
+                if side_a * side_b < 0 {
+                    let x = a + (b - a) * (da / (da - db));
+                    left.push(x);
+                    right.push(x);
+                }
+            }
+            next.push(left);
+            next.push(right);
+        }
+        pieces = next;
+    }
+    for piece in &mut pieces {
+        drop_collinear(piece, eps);
+    }
+    pieces.retain(|p| p.len() >= 3);
+    pieces
+}
+
+/// Removes corners within `eps` of the line through their neighbours (left on a piece's side by
+/// a cut through it), so that the fan makes no flat triangles.
+fn drop_collinear(poly: &mut Vec<DVec3>, eps: f64) {
+    let mut i = 0;
+    while poly.len() > 3 && i < poly.len() {
+        let n = poly.len();
+        let (a, b, c) = (poly[(i + n - 1) % n], poly[i], poly[(i + 1) % n]);
+        let d = c - a;
+        let len = d.length();
+        let off = if len > 0.0 {
+            (b - a).cross(d).length() / len
+        } else {
+            0.0
+        };
+        if off <= eps {
+            poly.remove(i);
+        } else {
+            i += 1;
+        }
+    }
+}
+
+fn side(d: f64, eps: f64) -> i32 {
+    if d > eps {
+        1
+    } else if d < -eps {
+        -1
+    } else {
+        0
+    }
+}
+
+/// Fans a convex polygon into triangles from its first corner (winding kept).
+fn fan(poly: &[DVec3]) -> Vec<[DVec3; 3]> {
+    (1..poly.len().saturating_sub(1))
+        .map(|i| [poly[0], poly[i], poly[i + 1]])
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::TriangleSource;
+
+    fn tri(a: DVec3, b: DVec3, c: DVec3) -> Triangle {
+        Triangle {
+            vertices: [a, b, c],
+            material: 0,
+            source: TriangleSource {
+                mesh: 0,
+                primitive: 0,
+                triangle: 0,
+            },
+        }
+    }
+
+    fn tol() -> Tolerances {
+        Tolerances {
+            length_m: 1e-6,
+            plane_m: 1e-6,
+            angle_rad: 1e-3,
+        }
+    }
+
+    fn area(ts: &[Triangle]) -> f64 {
+        ts.iter().map(|t| t.area()).sum()
+    }
+
+    #[test]
+    fn a_wall_standing_across_a_triangle_cuts_it_and_keeps_its_area() {
+        let floor = tri(
+            DVec3::ZERO,
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, -4.0),
+        );
+        // Floor normal: (4,0,0) x (0,0,-4) = (0,16,0): up. A wall in the plane x = 1 rising up.
+        let wall = tri(
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, -5.0),
+            DVec3::new(1.0, 2.0, 0.0),
+        );
+        let cut = cut_at_contacts(&[floor, wall], |_| false, &tol(), 10.0, 1e-12);
+        assert_eq!(cut.triangles_cut, 1);
+        assert_eq!(cut.segments.len(), 1);
+        let floor_pieces: Vec<Triangle> = cut
+            .pieces
+            .iter()
+            .zip(&cut.source)
+            .filter(|(_, &s)| s == 0)
+            .map(|(t, _)| *t)
+            .collect();
+        assert_eq!(floor_pieces.len(), 3, "a triangle and a quad");
+        assert!((area(&floor_pieces) - floor.area()).abs() < 1e-12);
+        for p in &floor_pieces {
+            assert!(p.cross().dot(DVec3::Y) > 0.0, "winding kept");
+            // No piece straddles x = 1.
+            let xs: Vec<f64> = p.vertices.iter().map(|v| v.x).collect();
+            assert!(xs.iter().all(|&x| x <= 1.0 + 1e-12) || xs.iter().all(|&x| x >= 1.0 - 1e-12));
+        }
+    }
+
+    #[test]
+    fn surfaces_below_the_plane_or_along_its_border_are_not_contacts() {
+        let floor = tri(
+            DVec3::ZERO,
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, -4.0),
+        );
+        // Hanging below the floor (its back side): no cut for a single-sided floor.
+        let below = tri(
+            DVec3::new(1.0, 0.0, 1.0),
+            DVec3::new(1.0, 0.0, -5.0),
+            DVec3::new(1.0, -2.0, 0.0),
+        );
+        // Standing on the floor's border edge z = 0.
+        let border = tri(
+            DVec3::new(-1.0, 0.0, 0.0),
+            DVec3::new(5.0, 0.0, 0.0),
+            DVec3::new(0.0, 2.0, 0.0),
+        );
+        let cut = cut_at_contacts(&[floor, below, border], |_| false, &tol(), 10.0, 1e-12);
+        assert_eq!(cut.triangles_cut, 0);
+        assert_eq!(cut.pieces.len(), 3);
+        // Double-sided, the hanging wall does cut.
+        let cut = cut_at_contacts(&[floor, below], |_| true, &tol(), 10.0, 1e-12);
+        assert_eq!(cut.triangles_cut, 1);
+    }
+
+    #[test]
+    fn a_line_through_a_corner_makes_no_sliver() {
+        let floor = tri(
+            DVec3::ZERO,
+            DVec3::new(4.0, 0.0, 0.0),
+            DVec3::new(0.0, 0.0, -4.0),
+        );
+        // The wall's base passes within 1e-9 of the floor's corner (4,0,0) and through the middle
+        // (0,0,-2) of the opposite edge: two pieces, no sliver at the corner.
+        let wall = tri(
+            DVec3::new(4.0 + 1e-9, 0.0, 0.0),
+            DVec3::new(-4.0, 0.0, -4.0),
+            DVec3::new(1.0, 2.0, -1.0),
+        );
+        let cut = cut_at_contacts(&[floor, wall], |_| false, &tol(), 10.0, 1e-12);
+        let floor_pieces: Vec<&Triangle> = cut
+            .pieces
+            .iter()
+            .zip(&cut.source)
+            .filter(|(_, &s)| s == 0)
+            .map(|(t, _)| t)
+            .collect();
+        assert_eq!(floor_pieces.len(), 2);
+        for p in floor_pieces {
+            assert!(p.area() > 1e-3, "sliver of area {}", p.area());
+        }
+    }
+}
