@@ -470,7 +470,7 @@ pub fn faces_json(faces: &FaceSet, surfaces: &[Surface]) -> Value {
             let surface = surfaces.iter().find(|s| s.face == f.id && s.side == Side::Front);
             let domain = surface.map(|s| {
                 json!({"origin": v3(s.frame.origin), "u": v3(s.frame.u), "v": v3(s.frame.v),
-                    "area": s.domain_area_m2()})
+                    "area": s.domain_area_m2(), "fill_ratio": s.fill_ratio()})
             });
             json!({
                 "id": f.id.0, "material": f.material, "double_sided": f.double_sided, "kind": f.kind.as_str(),
