@@ -88,7 +88,18 @@ impl ExtendedDomain {
         let base = outer.first().copied().unwrap_or(DVec3::ZERO);
         let to_plane = |p: &DVec3| DVec2::new((*p - base).dot(e1), (*p - base).dot(e2));
         let outer2: Vec<DVec2> = outer.iter().map(to_plane).collect();
-        let para = min_area_parallelogram(&outer2);
+        let holes2: Vec<Vec<DVec2>> = holes
+            .iter()
+            .map(|h| h.iter().map(to_plane).collect())
+            .collect();
+        // Hole vertices join the hull's input: a valid face's holes are inside its outer ring
+        // (no change), and an invalid one's still get coordinates in [0,1]^2.
+        let all: Vec<DVec2> = outer2
+            .iter()
+            .chain(holes2.iter().flatten())
+            .copied()
+            .collect();
+        let para = min_area_parallelogram(&all);
         let frame = Frame {
             origin: base + e1 * para.origin.x + e2 * para.origin.y,
             u: e1 * para.u.x + e2 * para.u.y,
@@ -108,12 +119,17 @@ impl ExtendedDomain {
         let mut rings = Vec::with_capacity(1 + holes.len());
         if let Some(ring) = clean_ring(outer2.iter().map(|p| to_st(*p)), true) {
             rings.push(ring);
-            for hole in holes {
-                if let Some(ring) = clean_ring(hole.iter().map(|p| to_st(to_plane(p))), false) {
+            for hole in &holes2 {
+                if let Some(ring) = clean_ring(hole.iter().map(|p| to_st(*p)), false) {
                     rings.push(ring);
                 }
             }
         }
+        debug_assert!(rings.iter().all(|r| r.len() >= 3));
+        debug_assert!(
+            frame.cross().dot(normal) >= 0.0,
+            "u x v must not oppose the normal"
+        );
         let locator = match TrapezoidalMap::new(&rings) {
             Ok(map) => PointLocator::Map(map),
             Err(e) => PointLocator::Rings(e),

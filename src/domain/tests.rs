@@ -732,3 +732,128 @@ fn map_of_a_comb_with_shared_x_coordinates() {
         }
     }
 }
+
+/// The scenes of `../shared/scenes` (absent in a fresh clone: the test then skips).
+fn shared_scenes() -> Vec<std::path::PathBuf> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                if p.file_name().is_some_and(|n| n != "original") {
+                    walk(&p, out);
+                }
+            } else if p.extension().is_some_and(|x| x == "gltf" || x == "glb") {
+                out.push(p);
+            }
+        }
+    }
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    let mut out = Vec::new();
+    walk(&dir, &mut out);
+    out.sort();
+    out
+}
+
+/// On every real extended face: a domain framing its surfaces, the trapezoidal map built (no
+/// fallback) and agreeing with the winding twin, vertices enclosed, areas consistent.
+#[test]
+fn every_extended_face_of_the_shared_scenes_gets_a_mapped_domain() {
+    use crate::domain::{build_domains, DomainMode};
+    use crate::faces::{merge_planar_faces, FaceKind};
+    let paths = shared_scenes();
+    if paths.is_empty() {
+        println!("SKIP: no ../shared/scenes");
+        return;
+    }
+    let mut extended_faces = 0;
+    for path in paths {
+        let name = path.display().to_string();
+        let scene = crate::scene::load_scene_from_path(&path, 5_000_000)
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let faces = merge_planar_faces(&scene);
+        let domains = build_domains(&scene, &faces, DomainMode::Extended);
+        assert_eq!(domains.extended.len(), faces.faces.len());
+        for face in &faces.faces {
+            let d = &domains.extended[face.id.0 as usize];
+            if face.kind != FaceKind::Extended {
+                assert!(d.is_none());
+                continue;
+            }
+            extended_faces += 1;
+            let id = face.id.0;
+            let d = d
+                .as_ref()
+                .unwrap_or_else(|| panic!("{name}: face {id} has no domain"));
+            assert!(
+                d.uses_trapezoidal_map(),
+                "{name}: face {id}: {:?}",
+                d.map_error()
+            );
+            for s in domains.surfaces.iter().filter(|s| s.face == face.id) {
+                let (u, v) = match s.side {
+                    crate::domain::Side::Front => (s.frame.u, s.frame.v),
+                    crate::domain::Side::Back => (s.frame.v, s.frame.u),
+                };
+                assert_eq!(
+                    (s.frame.origin, u, v),
+                    (d.frame.origin, d.frame.u, d.frame.v)
+                );
+                let fill = s.fill_ratio();
+                assert!(
+                    fill > 0.0 && fill <= 1.0 + 1e-9,
+                    "{name}: face {id}: fill {fill}"
+                );
+            }
+            let scale = d.domain_area_m2().sqrt();
+            for p in face.outer.iter().chain(face.holes.iter().flatten()) {
+                let st = d.coordinates(*p);
+                assert!(
+                    st.min_element() >= -1e-9 && st.max_element() <= 1.0 + 1e-9,
+                    "{name}: face {id}: vertex at {st}"
+                );
+                // Corners lie within twice the face tolerance of the face's plane.
+                let off = d.world_point(st).distance(*p);
+                assert!(
+                    off <= 2.0 * faces.tolerance_m + 1e-9 * scale,
+                    "{name}: face {id}: vertex {off} m off its domain"
+                );
+            }
+            let perimeter: f64 = std::iter::once(&face.outer)
+                .chain(&face.holes)
+                .map(|r| {
+                    (0..r.len())
+                        .map(|i| r[i].distance(r[(i + 1) % r.len()]))
+                        .sum::<f64>()
+                })
+                .sum();
+            assert!(
+                (d.face_area_m2() - face.area_m2).abs()
+                    <= faces.tolerance_m * perimeter + 1e-9 * face.area_m2,
+                "{name}: face {id}: rings {} m^2, triangles {} m^2",
+                d.face_area_m2(),
+                face.area_m2
+            );
+            // The whole domain's coverage is the face; the map agrees with the twin at the
+            // centroids of the face's triangles (inside, unless rounding puts a sliver's
+            // centroid on the other side of a boundary it hugs).
+            let whole = d.coverage(StBox::new(DVec2::ZERO, DVec2::ONE));
+            assert!((whole.area - d.fill_ratio()).abs() <= 1e-9);
+            let mut outside = 0;
+            for t in &face.triangulation {
+                let st = d.coordinates((t[0] + t[1] + t[2]) / 3.0);
+                let loc = d.locate(st);
+                assert_eq!(loc, twin_locate(d.rings(), st), "{name}: face {id} at {st}");
+                outside += usize::from(loc == Location::Outside);
+            }
+            assert!(
+                outside * 100 <= face.triangulation.len(),
+                "{name}: face {id}: {outside} centroids outside"
+            );
+        }
+    }
+    assert!(extended_faces > 0);
+    println!("{extended_faces} extended faces checked");
+}

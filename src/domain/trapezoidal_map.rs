@@ -352,6 +352,7 @@ impl TrapezoidalMap {
 
     fn insert(&mut self, s: Segment) -> Result<(), MapError> {
         let (p, q) = (s.left, s.right);
+        debug_assert!(lex_less(p, q), "segment endpoints out of order");
         let seg = self.segments.len() as u32;
         self.segments.push(s);
 
@@ -374,6 +375,7 @@ impl TrapezoidalMap {
             if next == NONE {
                 return Err(MapError::Inconsistent);
             }
+            debug_assert!(self.trap(next).alive && self.trap(next).leftp == Some(r));
             crossed.push(next);
         }
 
