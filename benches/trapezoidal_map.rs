@@ -73,6 +73,9 @@ struct Row {
     domain: Duration,
     queries_per_s: f64,
     depth: usize,
+    /// Mean nodes visited per query.
+    mean_path: f64,
+    build_steps: u64,
 }
 
 fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
@@ -107,6 +110,11 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
     }
     let secs = start.elapsed().as_secs_f64();
     black_box(inside);
+    let mean_path = points
+        .iter()
+        .map(|p| map.search_path_length(*p) as f64)
+        .sum::<f64>()
+        / points.len() as f64;
     Row {
         shape,
         edges,
@@ -114,6 +122,8 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
         domain,
         queries_per_s: (rounds * points.len()) as f64 / secs,
         depth: map.depth(),
+        mean_path,
+        build_steps: map.build_steps(),
     }
 }
 
@@ -128,12 +138,21 @@ fn main() {
     ];
     println!("trapezoidal map: construction and point location (median timings)");
     println!(
-        "{:<11} {:>7} {:>12} {:>13} {:>13} {:>12} {:>9} {:>6}",
-        "face", "edges", "build", "build/edge", "domain build", "queries/s", "ns/query", "depth"
+        "{:<11} {:>7} {:>11} {:>11} {:>13} {:>11} {:>9} {:>11} {:>10} {:>6}",
+        "face",
+        "edges",
+        "build",
+        "build/edge",
+        "domain build",
+        "queries/s",
+        "ns/query",
+        "steps/edge",
+        "mean path",
+        "depth"
     );
     for r in &rows {
         println!(
-            "{:<11} {:>7} {:>9.3} ms {:>10.1} ns {:>10.3} ms {:>12.3e} {:>9.1} {:>6}",
+            "{:<11} {:>7} {:>8.3} ms {:>8.1} ns {:>10.3} ms {:>11.3e} {:>9.1} {:>11.1} {:>10.1} {:>6}",
             r.shape,
             r.edges,
             r.build.as_secs_f64() * 1e3,
@@ -141,27 +160,33 @@ fn main() {
             r.domain.as_secs_f64() * 1e3,
             r.queries_per_s,
             1e9 / r.queries_per_s,
+            r.build_steps as f64 / r.edges as f64,
+            r.mean_path,
             r.depth
         );
     }
     println!();
-    println!("ratios between sizes (measured vs the model):");
     println!(
-        "{:<11} {:>15} {:>10} {:>10} {:>13} {:>10}",
-        "face", "sizes", "build", "n log n", "query time", "log n"
+        "ratios between sizes: wall time (includes cache misses) and work counts vs the model"
+    );
+    println!(
+        "{:<11} {:>15} {:>10} {:>11} {:>10} {:>11} {:>11} {:>8}",
+        "face", "sizes", "build", "build work", "n log n", "query time", "query path", "log n"
     );
     for group in rows.chunks(3) {
         for w in group.windows(2) {
             let (a, b) = (&w[0], &w[1]);
             let (na, nb) = (a.edges as f64, b.edges as f64);
             println!(
-                "{:<11} {:>7}->{:<7} {:>9.1}x {:>9.1}x {:>12.2}x {:>9.2}x",
+                "{:<11} {:>7}->{:<7} {:>9.1}x {:>10.1}x {:>9.1}x {:>10.2}x {:>10.2}x {:>7.2}x",
                 a.shape,
                 a.edges,
                 b.edges,
                 b.build.as_secs_f64() / a.build.as_secs_f64(),
+                b.build_steps as f64 / a.build_steps as f64,
                 (nb * nb.ln()) / (na * na.ln()),
                 a.queries_per_s / b.queries_per_s,
+                b.mean_path / a.mean_path,
                 nb.ln() / na.ln()
             );
         }

@@ -312,8 +312,7 @@ proptest! {
         seed in any::<u64>(), n_outer in 3usize..48, n_holes in 0usize..5, snap in any::<bool>()
     ) {
         let Some(rings) = random_polygon(seed, n_outer, n_holes, snap) else { return Ok(()) };
-        let map = TrapezoidalMap::new(&rings).expect("a valid polygon has a map");
-        map.assert_well_formed();
+        let map = TrapezoidalMap::new_checked(&rings).expect("a valid polygon has a map");
         let mut rng = Rng(seed ^ 0xabcd);
         for p in query_points(&mut rng, &rings, 60) {
             let twin = twin_locate(&rings, p);
@@ -723,8 +722,7 @@ fn map_of_a_comb_with_shared_x_coordinates() {
     }
     let rings = vec![ring];
     assert!(is_valid_polygon(&rings));
-    let map = TrapezoidalMap::new(&rings).expect("comb");
-    map.assert_well_formed();
+    let map = TrapezoidalMap::new_checked(&rings).expect("comb");
     for i in 0..=44 {
         for j in 0..=16 {
             let p = DVec2::new(i as f64 * 0.25 - 0.5, j as f64 * 0.25 - 0.5);
@@ -856,4 +854,30 @@ fn every_extended_face_of_the_shared_scenes_gets_a_mapped_domain() {
     }
     assert!(extended_faces > 0);
     println!("{extended_faces} extended faces checked");
+}
+
+#[test]
+fn an_empty_map_is_all_outside_and_paths_are_bounded_by_the_depth() {
+    let empty = TrapezoidalMap::new(&[]).expect("empty");
+    assert_eq!(
+        (
+            empty.segment_count(),
+            empty.trapezoid_count(),
+            empty.depth()
+        ),
+        (0, 1, 0)
+    );
+    assert_eq!(empty.locate(DVec2::ZERO), Location::Outside);
+    let rings = random_polygon(7, 40, 4, false).expect("polygon");
+    let map = TrapezoidalMap::new(&rings).expect("map");
+    let edges: usize = rings.iter().map(Vec::len).sum();
+    assert_eq!(map.segment_count(), edges);
+    // 3n + 1 trapezoids at most (de Berg et al., lemma 6.2).
+    assert!(map.trapezoid_count() <= 3 * edges + 1);
+    let mut rng = Rng(3);
+    for p in query_points(&mut rng, &rings, 200) {
+        let len = map.search_path_length(p);
+        assert!(len >= 1 && len <= map.depth(), "{len} > {}", map.depth());
+    }
+    assert!(map.build_steps() >= edges as u64);
 }

@@ -21,6 +21,12 @@
 //! segment, overlapping collinear segments, a missing neighbour) and, at the end, that every
 //! trapezoid's inside/outside status read from its bottom segment agrees with that read from its
 //! top segment; it returns a [`MapError`] rather than a wrong map when a check fails.
+//!
+//! Layout: construction works on a `Builder` (trapezoids with neighbour links, a DAG whose leaves
+//! are trapezoids). The finished map keeps only the search DAG, renumbered breadth-first from the
+//! root so its top levels share cache lines, with segment endpoints copied into the y-nodes and
+//! leaves reduced to an inside/outside tag in their parent's child slot: a query reads one node
+//! per level and nothing else.
 
 use super::predicates::{lex_less, orient};
 use glam::DVec2;
@@ -103,12 +109,53 @@ enum Node {
     },
 }
 
-/// A trapezoidal map with its search DAG (root: node 0).
+/// The map under construction: trapezoids with their links and the search DAG (root: node 0).
 #[derive(Debug, Clone)]
-pub struct TrapezoidalMap {
+struct Builder {
     segments: Vec<Segment>,
     trapezoids: Vec<Trapezoid>,
     nodes: Vec<Node>,
+    /// DAG nodes visited locating segment starts plus trapezoids crossed: the construction's work.
+    steps: u64,
+    // Scratch buffers of `insert`, reused across segments.
+    crossed: Vec<u32>,
+    upper_of: Vec<u32>,
+    lower_of: Vec<u32>,
+}
+
+/// A child slot of a [`SearchNode`] naming a leaf outside the face.
+const LEAF_OUTSIDE: u32 = u32::MAX - 1;
+/// A child slot naming a leaf inside the face.
+const LEAF_INSIDE: u32 = u32::MAX;
+
+/// A node of the finished search DAG; children are node indices or a `LEAF_*` tag.
+#[derive(Debug, Clone, Copy)]
+enum SearchNode {
+    X {
+        point: DVec2,
+        left: u32,
+        right: u32,
+    },
+    /// The segment `left -> right` (lexicographic order).
+    Y {
+        left: DVec2,
+        right: DVec2,
+        above: u32,
+        below: u32,
+    },
+}
+
+/// A trapezoidal map's point-location structure.
+#[derive(Debug, Clone)]
+pub struct TrapezoidalMap {
+    /// Breadth-first from the root, `nodes[0]` (empty when the root is a leaf).
+    nodes: Vec<SearchNode>,
+    /// The root's slot: 0, or a `LEAF_*` tag for a map without segments.
+    root: u32,
+    segment_count: usize,
+    trapezoid_count: usize,
+    depth: usize,
+    build_steps: u64,
 }
 
 /// SplitMix64: a tiny, good-enough generator for the shuffle.
@@ -132,6 +179,93 @@ impl TrapezoidalMap {
     /// Builds the map of `rings` (see the module's input contract). Repeated consecutive vertices
     /// are skipped; a ring with fewer than two distinct vertices adds nothing.
     pub fn new(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        Ok(Builder::build(rings)?.freeze())
+    }
+
+    /// Like [`Self::new`], checking the construction's trapezoid links first (tests): panics with
+    /// the broken rule.
+    pub fn new_checked(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        let builder = Builder::build(rings)?;
+        builder.assert_well_formed();
+        Ok(builder.freeze())
+    }
+
+    /// Number of segments in the map.
+    pub fn segment_count(&self) -> usize {
+        self.segment_count
+    }
+
+    /// Number of trapezoids of the map.
+    pub fn trapezoid_count(&self) -> usize {
+        self.trapezoid_count
+    }
+
+    /// Length of the longest search path (nodes; O(log n) expected).
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// DAG nodes visited and trapezoids crossed while building: the construction's work
+    /// (O(n log n) expected), independent of the memory hierarchy.
+    pub fn build_steps(&self) -> u64 {
+        self.build_steps
+    }
+
+    /// Where `p` lies: inside, outside or exactly on the boundary. Non-finite points are outside.
+    pub fn locate(&self, p: DVec2) -> Location {
+        self.locate_counting(p).0
+    }
+
+    /// The closed face contains `p` (inside or on the boundary).
+    pub fn contains(&self, p: DVec2) -> bool {
+        self.locate(p) != Location::Outside
+    }
+
+    /// Nodes visited locating `p` (for measurements).
+    pub fn search_path_length(&self, p: DVec2) -> usize {
+        self.locate_counting(p).1
+    }
+
+    fn locate_counting(&self, p: DVec2) -> (Location, usize) {
+        if !p.is_finite() {
+            return (Location::Outside, 0);
+        }
+        let mut slot = self.root;
+        let mut visited = 0;
+        loop {
+            match slot {
+                LEAF_INSIDE => return (Location::Inside, visited),
+                LEAF_OUTSIDE => return (Location::Outside, visited),
+                _ => {}
+            }
+            visited += 1;
+            match self.nodes[slot as usize] {
+                SearchNode::X { point, left, right } => {
+                    if p == point {
+                        return (Location::Boundary, visited);
+                    }
+                    slot = if lex_less(p, point) { left } else { right };
+                }
+                SearchNode::Y {
+                    left,
+                    right,
+                    above,
+                    below,
+                } => {
+                    let o = orient(left, right, p);
+                    if o == 0.0 {
+                        // The point is within the segment's x-range (the node's region is).
+                        return (Location::Boundary, visited);
+                    }
+                    slot = if o > 0.0 { above } else { below };
+                }
+            }
+        }
+    }
+}
+
+impl Builder {
+    fn build(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
         let mut segments = Vec::new();
         for ring in rings {
             let n = ring.len();
@@ -160,10 +294,14 @@ impl TrapezoidalMap {
         for i in (1..segments.len()).rev() {
             segments.swap(i, rng.below(i + 1));
         }
-        let mut map = TrapezoidalMap {
+        let mut map = Builder {
             segments: Vec::with_capacity(segments.len()),
             trapezoids: Vec::with_capacity(4 * segments.len() + 1),
             nodes: Vec::with_capacity(8 * segments.len() + 1),
+            steps: 0,
+            crossed: Vec::new(),
+            upper_of: Vec::new(),
+            lower_of: Vec::new(),
         };
         map.new_trapezoid(Trapezoid {
             top: NONE,
@@ -184,81 +322,78 @@ impl TrapezoidalMap {
         Ok(map)
     }
 
-    /// Number of segments in the map.
-    pub fn segment_count(&self) -> usize {
-        self.segments.len()
-    }
-
-    /// Where `p` lies: inside, outside or exactly on the boundary. Non-finite points are outside.
-    pub fn locate(&self, p: DVec2) -> Location {
-        if !p.is_finite() {
-            return Location::Outside;
-        }
-        let mut node = 0u32;
-        loop {
-            match self.nodes[node as usize] {
-                Node::X { point, left, right } => {
-                    if p == point {
-                        return Location::Boundary;
-                    }
-                    node = if lex_less(p, point) { left } else { right };
+    /// The finished map: the DAG renumbered breadth-first, leaves folded into their parents.
+    fn freeze(self) -> TrapezoidalMap {
+        let leaf_tag = |node: &Node| match *node {
+            Node::Leaf { trapezoid } => Some(if self.inside(trapezoid) {
+                LEAF_INSIDE
+            } else {
+                LEAF_OUTSIDE
+            }),
+            _ => None,
+        };
+        let mut new_id = vec![NONE; self.nodes.len()];
+        let mut order: Vec<u32> = Vec::with_capacity(self.nodes.len());
+        let root = match leaf_tag(&self.nodes[0]) {
+            Some(tag) => tag,
+            None => {
+                new_id[0] = 0;
+                order.push(0);
+                0
+            }
+        };
+        // Breadth-first numbering of the internal nodes.
+        let mut head = 0;
+        while head < order.len() {
+            let old = order[head] as usize;
+            head += 1;
+            let children = match self.nodes[old] {
+                Node::X { left, right, .. } => [left, right],
+                Node::Y { above, below, .. } => [above, below],
+                Node::Leaf { .. } => continue,
+            };
+            for c in children {
+                if leaf_tag(&self.nodes[c as usize]).is_none() && new_id[c as usize] == NONE {
+                    new_id[c as usize] = order.len() as u32;
+                    order.push(c);
                 }
+            }
+        }
+        let slot = |c: u32| leaf_tag(&self.nodes[c as usize]).unwrap_or(new_id[c as usize]);
+        let nodes: Vec<SearchNode> = order
+            .iter()
+            .filter_map(|&old| match self.nodes[old as usize] {
+                Node::X { point, left, right } => Some(SearchNode::X {
+                    point,
+                    left: slot(left),
+                    right: slot(right),
+                }),
                 Node::Y {
                     segment,
                     above,
                     below,
                 } => {
                     let s = &self.segments[segment as usize];
-                    let o = orient(s.left, s.right, p);
-                    if o == 0.0 {
-                        // The point is within the segment's x-range (the node's region is).
-                        return Location::Boundary;
-                    }
-                    node = if o > 0.0 { above } else { below };
+                    Some(SearchNode::Y {
+                        left: s.left,
+                        right: s.right,
+                        above: slot(above),
+                        below: slot(below),
+                    })
                 }
-                Node::Leaf { trapezoid } => {
-                    return if self.inside(trapezoid) {
-                        Location::Inside
-                    } else {
-                        Location::Outside
-                    };
-                }
-            }
+                Node::Leaf { .. } => None,
+            })
+            .collect();
+        debug_assert_eq!(nodes.len(), order.len());
+        let depth = longest_path(&nodes, root);
+        TrapezoidalMap {
+            nodes,
+            root,
+            segment_count: self.segments.len(),
+            trapezoid_count: self.trapezoids.iter().filter(|t| t.alive).count(),
+            depth,
+            build_steps: self.steps,
         }
-    }
-
-    /// The closed face contains `p` (inside or on the boundary).
-    pub fn contains(&self, p: DVec2) -> bool {
-        self.locate(p) != Location::Outside
-    }
-
-    /// Length of the longest search path (a measure of the O(log n) query cost).
-    pub fn depth(&self) -> usize {
-        let mut depth = vec![0usize; self.nodes.len()];
-        // Children are always created before their parent is rewritten, except the root's slot
-        // reuse; a memoised post-order walk handles any order.
-        fn walk(map: &TrapezoidalMap, n: u32, depth: &mut [usize]) -> usize {
-            if depth[n as usize] > 0 {
-                return depth[n as usize];
-            }
-            let d = match map.nodes[n as usize] {
-                Node::Leaf { .. } => 1,
-                Node::X { left, right, .. } => {
-                    1 + walk(map, left, depth).max(walk(map, right, depth))
-                }
-                Node::Y { above, below, .. } => {
-                    1 + walk(map, above, depth).max(walk(map, below, depth))
-                }
-            };
-            depth[n as usize] = d;
-            d
-        }
-        walk(self, 0, &mut depth)
-    }
-
-    /// Number of trapezoids of the final map.
-    pub fn trapezoid_count(&self) -> usize {
-        self.trapezoids.iter().filter(|t| t.alive).count()
     }
 
     /// The face lies in trapezoid `t` (read from its bottom segment).
@@ -282,9 +417,10 @@ impl TrapezoidalMap {
 
     /// The trapezoid a new segment `p -> q` starts in: the one just right of `p` on its side of
     /// every segment through `p`.
-    fn locate_start(&self, p: DVec2, q: DVec2) -> Result<u32, MapError> {
+    fn locate_start(&mut self, p: DVec2, q: DVec2) -> Result<u32, MapError> {
         let mut node = 0u32;
         loop {
+            self.steps += 1;
             match self.nodes[node as usize] {
                 Node::X { point, left, right } => {
                     // A shared endpoint goes right: the new segment extends to the right.
@@ -357,7 +493,14 @@ impl TrapezoidalMap {
         self.segments.push(s);
 
         // The trapezoids the segment crosses, left to right.
-        let mut crossed = vec![self.locate_start(p, q)?];
+        let start = self.locate_start(p, q)?;
+        let mut crossed = std::mem::take(&mut self.crossed);
+        let mut upper_of = std::mem::take(&mut self.upper_of);
+        let mut lower_of = std::mem::take(&mut self.lower_of);
+        crossed.clear();
+        upper_of.clear();
+        lower_of.clear();
+        crossed.push(start);
         loop {
             let t = self.trap(crossed[crossed.len() - 1]);
             let Some(r) = t.rightp else { break };
@@ -378,6 +521,7 @@ impl TrapezoidalMap {
             debug_assert!(self.trap(next).alive && self.trap(next).leftp == Some(r));
             crossed.push(next);
         }
+        self.steps += crossed.len() as u64;
 
         let first = crossed[0];
         let last = crossed[crossed.len() - 1];
@@ -431,8 +575,6 @@ impl TrapezoidalMap {
             self.relink_right(d0.lower_left, first, NONE, lower);
             None
         };
-        let mut upper_of = Vec::with_capacity(crossed.len());
-        let mut lower_of = Vec::with_capacity(crossed.len());
         upper_of.push(upper);
         lower_of.push(lower);
 
@@ -555,6 +697,9 @@ impl TrapezoidalMap {
             dead.alive = false;
             dead.leaf = NONE;
         }
+        self.crossed = crossed;
+        self.upper_of = upper_of;
+        self.lower_of = lower_of;
         Ok(())
     }
 
@@ -642,4 +787,46 @@ impl TrapezoidalMap {
             }
         }
     }
+}
+
+/// Nodes on the longest path from `root` to a leaf (memoised; children precede nothing in
+/// particular in a DAG, so a post-order walk with a stack).
+fn longest_path(nodes: &[SearchNode], root: u32) -> usize {
+    if root >= LEAF_OUTSIDE {
+        return 0;
+    }
+    let children = |n: u32| match nodes[n as usize] {
+        SearchNode::X { left, right, .. } => [left, right],
+        SearchNode::Y { above, below, .. } => [above, below],
+    };
+    let mut depth = vec![0usize; nodes.len()];
+    let mut stack = vec![(root, false)];
+    while let Some((n, expanded)) = stack.pop() {
+        if depth[n as usize] > 0 {
+            continue;
+        }
+        let kids = children(n);
+        if expanded {
+            let d = kids
+                .iter()
+                .map(|&c| {
+                    if c >= LEAF_OUTSIDE {
+                        0
+                    } else {
+                        depth[c as usize]
+                    }
+                })
+                .max()
+                .unwrap_or(0);
+            depth[n as usize] = d + 1;
+        } else {
+            stack.push((n, true));
+            for c in kids {
+                if c < LEAF_OUTSIDE && depth[c as usize] == 0 {
+                    stack.push((c, false));
+                }
+            }
+        }
+    }
+    depth[root as usize]
 }
