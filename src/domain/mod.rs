@@ -153,7 +153,7 @@ pub fn clamp_to_shape(shape: Shape, st: DVec2) -> DVec2 {
 /// How faces that are neither triangles nor parallelograms are represented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DomainMode {
-    /// The paper's extended domains (not built yet: such faces are tessellated meanwhile).
+    /// The paper's extended domains (built, but the solver tessellates such faces until issue 5).
     #[default]
     Extended,
     /// The paper's baseline: every such face is split into its triangles.
