@@ -86,8 +86,14 @@ pub fn min_area_parallelogram(points: &[DVec2]) -> EnclosingParallelogram {
     let base = hull[0];
     let hull: Vec<DVec2> = hull.iter().map(|p| *p - base).collect();
     let dirs = edge_directions(&hull);
+    let extremes = [base, base + hull[hull.len() / 2]];
     if dirs.len() < 2 {
-        return degenerate(&[base, base + hull[hull.len() / 2]]);
+        // Every hull edge is parallel to one direction within PARALLEL_RAD (a sliver): the
+        // rectangle along it, as thin as the sliver.
+        return match dirs.first() {
+            Some(d) => finish(from_directions(&hull, d.dir, d.dir.perp()), base, &extremes),
+            None => degenerate(&extremes),
+        };
     }
     let m = dirs.len();
     let area = |i: usize, k: usize| -> f64 {
@@ -149,13 +155,29 @@ pub fn min_area_parallelogram(points: &[DVec2]) -> EnclosingParallelogram {
         }
     }
     let Some((_, _, i, j)) = chosen else {
-        return degenerate(&[base, base + hull[hull.len() / 2]]);
+        return degenerate(&extremes);
     };
-    let mut p = from_directions(&hull, dirs[i].dir, dirs[j].dir);
+    finish(
+        from_directions(&hull, dirs[i].dir, dirs[j].dir),
+        base,
+        &extremes,
+    )
+}
+
+/// `p` moved back by `base`, or the degenerate domain of `extremes` if `p` has no positive finite
+/// area (widths lost to rounding).
+fn finish(
+    mut p: EnclosingParallelogram,
+    base: DVec2,
+    extremes: &[DVec2],
+) -> EnclosingParallelogram {
     p.origin += base;
-    debug_assert!(p.origin.is_finite() && p.u.is_finite() && p.v.is_finite());
-    debug_assert!(p.area() > 0.0);
-    p
+    let area = p.area();
+    if area > 0.0 && area.is_finite() && p.origin.is_finite() {
+        p
+    } else {
+        degenerate(extremes)
+    }
 }
 
 /// The first `k` in `[lo, hi)` for which `pred` is false (`hi` when none), for a predicate that is

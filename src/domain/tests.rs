@@ -881,3 +881,34 @@ fn an_empty_map_is_all_outside_and_paths_are_bounded_by_the_depth() {
     }
     assert!(map.build_steps() >= edges as u64);
 }
+
+#[test]
+fn extreme_slivers_give_valid_domains() {
+    // Width over length down to 1e-14: (s, t) of the vertices carry rounding errors far above
+    // 1e-9 of the domain's width; they are clamped, never a panic or NaN.
+    for k in [4, 8, 11, 14] {
+        let h = 10f64.powi(-k);
+        let outer = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(1.0, 0.0),
+            DVec2::new(0.7, h),
+            DVec2::new(0.2, 0.9 * h),
+        ];
+        let d = ExtendedDomain::from_plane_polygon(&outer, &[]).expect("sliver");
+        assert_valid_domain(&d);
+        assert!(d.fill_ratio() > 0.5, "1e-{k}: fill {}", d.fill_ratio());
+    }
+}
+
+#[test]
+fn maps_are_reproducible() {
+    let rings = random_polygon(11, 40, 3, true).expect("polygon");
+    let (a, b) = (
+        TrapezoidalMap::new(&rings).expect("a"),
+        TrapezoidalMap::new(&rings).expect("b"),
+    );
+    assert_eq!(
+        (a.depth(), a.build_steps(), a.trapezoid_count()),
+        (b.depth(), b.build_steps(), b.trapezoid_count())
+    );
+}
