@@ -305,6 +305,9 @@ pub fn locate_by_winding(rings: &[Vec<DVec2>], p: DVec2) -> Location {
         let n = ring.len();
         for i in 0..n {
             let (a, b) = (ring[i], ring[(i + 1) % n]);
+            if a == b {
+                continue; // A repeated vertex is no edge (as in the trapezoidal map).
+            }
             if on_segment(a, b, p) {
                 return Location::Boundary;
             }

@@ -912,3 +912,35 @@ fn maps_are_reproducible() {
         (b.depth(), b.build_steps(), b.trapezoid_count())
     );
 }
+
+proptest! {
+    #![proptest_config(config(1500, 0xf022_0001))]
+
+    /// Arbitrary rings (self-intersecting, overlapping, touching, on a coarse grid so degenerate
+    /// contacts are common): the map either refuses them or answers exactly like the
+    /// nonzero-winding twin; valid polygons are never refused; nothing panics.
+    #[test]
+    fn map_refuses_or_answers_right_on_arbitrary_rings(
+        seed in any::<u64>(), n_rings in 1usize..4, n in 3usize..9, grid in 2.0f64..9.0
+    ) {
+        let mut rng = Rng(seed);
+        let grid = grid.floor();
+        let rings: Vec<Vec<DVec2>> = (0..n_rings)
+            .map(|_| (0..n).map(|_| (DVec2::new(rng.f(), rng.f()) * grid).floor() / grid).collect())
+            .collect();
+        let valid = is_valid_polygon(&rings);
+        match TrapezoidalMap::new_checked(&rings) {
+            Ok(map) => {
+                for p in query_points(&mut rng, &rings, 40) {
+                    let twin = locate_by_winding(&rings, p);
+                    prop_assert_eq!(map.locate(p), twin, "{:?} at {:?}", rings, p);
+                }
+            }
+            Err(e) => prop_assert!(!valid, "a valid polygon was refused: {:?} {:?}", e, rings),
+        }
+        // The domain of the same rings never panics and is usable.
+        if let Ok(d) = ExtendedDomain::from_plane_polygon(&rings[0], &rings[1..]) {
+            assert_valid_domain(&d);
+        }
+    }
+}

@@ -17,10 +17,13 @@
 //!
 //! Input contract: rings are closed (last vertex joined to the first), oriented with the interior
 //! on their left (outer counter-clockwise, holes clockwise), and no two segments meet except at
-//! shared endpoints. Construction checks what it meets on the way (a vertex inside another
-//! segment, overlapping collinear segments, a missing neighbour) and, at the end, that every
-//! trapezoid's inside/outside status read from its bottom segment agrees with that read from its
-//! top segment; it returns a [`MapError`] rather than a wrong map when a check fails.
+//! shared endpoints. Construction checks each new segment exactly against the top and bottom
+//! segments of every trapezoid it crosses (a crossing, a vertex inside another segment or a
+//! collinear overlap; any two segments that meet wrongly are caught this way, since just before
+//! they meet the earlier one bounds the trapezoid holding the later), checks neighbours exist,
+//! and at the end that every trapezoid's inside/outside status read from its bottom segment
+//! agrees with that read from its top segment (which catches inconsistently oriented rings); it
+//! returns a [`MapError`] rather than a wrong map when a check fails.
 //!
 //! Layout: construction works on a `Builder` (trapezoids with neighbour links, a DAG whose leaves
 //! are trapezoids). The finished map keeps only the search DAG, renumbered breadth-first from the
@@ -503,6 +506,15 @@ impl Builder {
         crossed.push(start);
         loop {
             let t = self.trap(crossed[crossed.len() - 1]);
+            // The segment must stay between the trapezoid's top and bottom: a crossing of any
+            // existing segment shows up here first (just before it, that segment bounds the
+            // trapezoid holding the new one).
+            for bound in [t.top, t.bottom] {
+                if bound != NONE {
+                    let e = &self.segments[bound as usize];
+                    segments_conflict(p, q, e.left, e.right)?;
+                }
+            }
             let Some(r) = t.rightp else { break };
             if !lex_less(r, q) {
                 break;
@@ -786,6 +798,39 @@ impl Builder {
                 );
             }
         }
+    }
+}
+
+fn sign(x: f64) -> i8 {
+    if x > 0.0 {
+        1
+    } else if x < 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// Whether the segments `p -> q` and `a -> b` (each lexicographically ordered) meet other than at a
+/// shared endpoint: a crossing, an endpoint inside the other segment, or a collinear overlap.
+fn segments_conflict(p: DVec2, q: DVec2, a: DVec2, b: DVec2) -> Result<(), MapError> {
+    let (o1, o2) = (sign(orient(p, q, a)), sign(orient(p, q, b)));
+    if o1 == 0 && o2 == 0 {
+        // Collinear: their lexicographic ranges may share at most an endpoint.
+        return if lex_less(p, b) && lex_less(a, q) {
+            Err(MapError::Overlap)
+        } else {
+            Ok(())
+        };
+    }
+    if p == a || p == b || q == a || q == b {
+        return Ok(()); // Not collinear: they meet only there.
+    }
+    let (o3, o4) = (sign(orient(a, b, p)), sign(orient(a, b, q)));
+    if o1 * o2 <= 0 && o3 * o4 <= 0 {
+        Err(MapError::Crossing)
+    } else {
+        Ok(())
     }
 }
 
