@@ -1,6 +1,8 @@
 //! Benchmark of the extended domain's trapezoidal map (issue 4): construction time and point
 //! location queries per second for faces of about 10, 1 000 and 100 000 edges, and the ratios
-//! between sizes (expected: O(n log n) build, O(log n) query). Also the whole `ExtendedDomain`
+//! between sizes (expected: O(n log n) build, O(log n) query), with the work counts (nodes
+//! visited) that the wall times include along with cache misses; queries in random order and in
+//! scanline order. Also the whole `ExtendedDomain`
 //! build (hull, parallelogram, map). Run with `cargo bench --bench trapezoidal_map`.
 
 use glam::DVec2;
@@ -72,6 +74,7 @@ struct Row {
     build: Duration,
     domain: Duration,
     queries_per_s: f64,
+    coherent_queries_per_s: f64,
     depth: usize,
     /// Mean nodes visited per query.
     mean_path: f64,
@@ -110,6 +113,21 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
     }
     let secs = start.elapsed().as_secs_f64();
     black_box(inside);
+    // The same points in scanline order (rows of 1/256): spatially coherent, like a solver's.
+    let mut coherent = points.clone();
+    coherent.sort_by(|a, b| {
+        ((a.y * 256.0) as u32, a.x)
+            .partial_cmp(&((b.y * 256.0) as u32, b.x))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    let start = Instant::now();
+    for _ in 0..rounds {
+        for p in &coherent {
+            inside += usize::from(map.contains(black_box(*p)));
+        }
+    }
+    let coherent_secs = start.elapsed().as_secs_f64();
+    black_box(inside);
     let mean_path = points
         .iter()
         .map(|p| map.search_path_length(*p) as f64)
@@ -121,6 +139,7 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
         build,
         domain,
         queries_per_s: (rounds * points.len()) as f64 / secs,
+        coherent_queries_per_s: (rounds * points.len()) as f64 / coherent_secs,
         depth: map.depth(),
         mean_path,
         build_steps: map.build_steps(),
@@ -138,7 +157,7 @@ fn main() {
     ];
     println!("trapezoidal map: construction and point location (median timings)");
     println!(
-        "{:<11} {:>7} {:>11} {:>11} {:>13} {:>11} {:>9} {:>11} {:>10} {:>6}",
+        "{:<11} {:>7} {:>11} {:>11} {:>13} {:>11} {:>9} {:>12} {:>11} {:>10} {:>6}",
         "face",
         "edges",
         "build",
@@ -146,13 +165,14 @@ fn main() {
         "domain build",
         "queries/s",
         "ns/query",
+        "coherent q/s",
         "steps/edge",
         "mean path",
         "depth"
     );
     for r in &rows {
         println!(
-            "{:<11} {:>7} {:>8.3} ms {:>8.1} ns {:>10.3} ms {:>11.3e} {:>9.1} {:>11.1} {:>10.1} {:>6}",
+            "{:<11} {:>7} {:>8.3} ms {:>8.1} ns {:>10.3} ms {:>11.3e} {:>9.1} {:>12.3e} {:>11.1} {:>10.1} {:>6}",
             r.shape,
             r.edges,
             r.build.as_secs_f64() * 1e3,
@@ -160,6 +180,7 @@ fn main() {
             r.domain.as_secs_f64() * 1e3,
             r.queries_per_s,
             1e9 / r.queries_per_s,
+            r.coherent_queries_per_s,
             r.build_steps as f64 / r.edges as f64,
             r.mean_path,
             r.depth
