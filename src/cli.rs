@@ -292,12 +292,18 @@ fn faces(a: FacesArgs) -> ExitCode {
             prepared.faces.faces.len()
         );
         for f in &prepared.faces.faces {
+            let fill = prepared
+                .surfaces
+                .iter()
+                .find(|s| s.face == f.id)
+                .map_or(0.0, |s| s.fill_ratio());
             println!(
-                "face {:>6}  material {:>3}  {:<13} area {:.6} m2  holes {}  vertices {}  triangles {}",
+                "face {:>6}  material {:>3}  {:<13} area {:.6} m2  fill {:.3}  holes {}  vertices {}  triangles {}",
                 f.id.0,
                 f.material,
                 f.kind.as_str(),
                 f.area_m2,
+                fill,
                 f.holes.len(),
                 f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
                 prepared.faces.source_triangle_count(f)

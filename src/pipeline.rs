@@ -3,7 +3,7 @@
 //! Used by the CLI, the service and the tests so that all three solve exactly the same way.
 //! Checks that the scene has something to solve (an emitter) before any work.
 
-use crate::domain::{build_domains, DomainMode, ElementRoot, Surface};
+use crate::domain::{build_domains, DomainMode, ElementRoot, ExtendedDomain, Surface};
 use crate::faces::{merge_planar_faces, FaceSet};
 use crate::scene::{Scene, SceneError};
 use crate::solver::{solve, visibility::Visibility, Progress, Solution, SolverParams};
@@ -15,6 +15,8 @@ pub struct Prepared {
     /// One per face side, with the range of its roots in `roots`.
     pub surfaces: Vec<Surface>,
     pub roots: Vec<ElementRoot>,
+    /// Per face id: the extended domain of an extended face (not used by the solver yet).
+    pub extended: Vec<Option<ExtendedDomain>>,
     pub visibility: Visibility,
     pub diagonal: f64,
 }
@@ -53,6 +55,7 @@ pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
         faces,
         surfaces: domains.surfaces,
         roots: domains.roots,
+        extended: domains.extended,
         visibility,
         diagonal,
     }

@@ -60,7 +60,7 @@ fn dependencies_point_along_the_data_flow() {
             ],
         ),
         (
-            "domain.rs",
+            "domain",
             &["crate::solver", "crate::output", "crate::service", "gltf::"],
         ),
         (

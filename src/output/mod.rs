@@ -470,7 +470,7 @@ pub fn faces_json(faces: &FaceSet, surfaces: &[Surface]) -> Value {
             let surface = surfaces.iter().find(|s| s.face == f.id && s.side == Side::Front);
             let domain = surface.map(|s| {
                 json!({"origin": v3(s.frame.origin), "u": v3(s.frame.u), "v": v3(s.frame.v),
-                    "area": s.domain_area_m2()})
+                    "area": s.domain_area_m2(), "fill_ratio": s.fill_ratio()})
             });
             json!({
                 "id": f.id.0, "material": f.material, "double_sided": f.double_sided, "kind": f.kind.as_str(),
@@ -518,6 +518,78 @@ mod tests {
             }
         }
         assert!((sum - 0.5).abs() < 1e-12);
+    }
+
+    /// `faces --json` adds `domain.fill_ratio`: an L of three unit squares fills three quarters of
+    /// its minimal enclosing parallelogram (the 2 x 2 square); a square fills all of its own.
+    #[test]
+    fn faces_json_reports_fill_ratios() {
+        use crate::scene::{Material, Scene, Triangle, TriangleSource};
+        let p = |x: f64, y: f64, z: f64| glam::DVec3::new(x, y, z);
+        let quads = [
+            // The L in z = 0: [0,1]x[0,1], [1,2]x[0,1], [0,1]x[1,2].
+            [
+                p(0.0, 0.0, 0.0),
+                p(1.0, 0.0, 0.0),
+                p(1.0, 1.0, 0.0),
+                p(0.0, 1.0, 0.0),
+            ],
+            [
+                p(1.0, 0.0, 0.0),
+                p(2.0, 0.0, 0.0),
+                p(2.0, 1.0, 0.0),
+                p(1.0, 1.0, 0.0),
+            ],
+            [
+                p(0.0, 1.0, 0.0),
+                p(1.0, 1.0, 0.0),
+                p(1.0, 2.0, 0.0),
+                p(0.0, 2.0, 0.0),
+            ],
+            // A square in the plane z = 5.
+            [
+                p(0.0, 0.0, 5.0),
+                p(1.0, 0.0, 5.0),
+                p(1.0, 1.0, 5.0),
+                p(0.0, 1.0, 5.0),
+            ],
+        ];
+        let mut triangles = Vec::new();
+        for q in quads {
+            for v in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
+                triangles.push(Triangle {
+                    vertices: v,
+                    material: 0,
+                    source: TriangleSource {
+                        mesh: 0,
+                        primitive: 0,
+                        triangle: triangles.len() as u32,
+                    },
+                });
+            }
+        }
+        let scene = Scene::new(triangles, vec![Material::gltf_default()], vec![], vec![]);
+        let faces = crate::faces::merge_planar_faces(&scene);
+        let domains =
+            crate::domain::build_domains(&scene, &faces, crate::domain::DomainMode::Extended);
+        let doc = faces_json(&faces, &domains.surfaces);
+        let list = doc["faces"].as_array().expect("faces");
+        assert_eq!(list.len(), 2);
+        let mut fills: Vec<(String, f64)> = list
+            .iter()
+            .map(|f| {
+                let fill = f["domain"]["fill_ratio"].as_f64().expect("fill_ratio");
+                let area = f["area"].as_f64().expect("area");
+                let domain_area = f["domain"]["area"].as_f64().expect("domain area");
+                assert!((fill - area / domain_area).abs() < 1e-12);
+                (f["kind"].as_str().expect("kind").to_string(), fill)
+            })
+            .collect();
+        fills.sort_by(|a, b| a.0.cmp(&b.0));
+        assert_eq!(fills[0].0, "extended");
+        assert!((fills[0].1 - 0.75).abs() < 1e-12, "L fill {}", fills[0].1);
+        assert_eq!(fills[1].0, "parallelogram");
+        assert!((fills[1].1 - 1.0).abs() < 1e-12);
     }
 
     #[test]

@@ -1,15 +1,37 @@
 //! Domains: the element roots of every face side (what the solver's bases live on) and the
 //! surfaces (one per face side: the frame its lightmap rectangle lives on, and its roots).
 //!
-//! A triangle or parallelogram face is one native root; any other face is, until extended domains
-//! exist, one triangle root per triangle of its triangulation (the paper's tessellated baseline),
-//! framed for the lightmap by an enclosing rectangle in its plane.
+//! A triangle or parallelogram face is one native root; any other ("extended") face gets an
+//! [`ExtendedDomain`]: its minimal-area enclosing parallelogram, which frames its lightmap, with
+//! the face as a polygon with holes in `(s, t)`. Until the solver works on extended domains (issue
+//! 5) such a face is solved as one triangle root per triangle of its triangulation (the paper's
+//! tessellated baseline) in both [`DomainMode`]s; its domain is kept in [`Domains::extended`].
 //!
 //! A root's frame maps reference coordinates `(s, t)` to world space: `x(s,t) = origin + s*u + t*v`.
 //! For a [`Shape::Parallelogram`] `(s,t)` ranges over `[0,1]^2`; for a [`Shape::Triangle`] over
 //! `s, t >= 0, s + t <= 1`. Invariant: `u x v` points along the side's normal (the back side of a
 //! double-sided face swaps `u` and `v`), so every root emits and receives on the side `u x v` faces.
-//! Extended domains (a parallelogram with a face mask) come with the extended-domains issue.
+//!
+//! Submodules (the extended-domain geometry, DESIGN.md section 4): [`predicates`] (exact
+//! orientation, lexicographic order), [`hull`] (convex hull), [`parallelogram`] (minimal-area
+//! enclosing parallelogram), [`trapezoidal_map`] (point location), [`coverage`] (face area in a
+//! box, element status), [`extended`] ([`ExtendedDomain`]: frame, rings, map and the queries the
+//! solver asks). None of them knows faces, scenes or the solver except `extended` (which takes
+//! plain rings) and this file.
+
+pub mod coverage;
+pub mod extended;
+pub mod hull;
+pub mod parallelogram;
+pub mod predicates;
+pub mod trapezoidal_map;
+
+#[cfg(test)]
+mod tests;
+
+pub use coverage::{Coverage, ElementStatus, StBox};
+pub use extended::{DomainError, ExtendedDomain};
+pub use trapezoidal_map::{Location, MapError, TrapezoidalMap};
 
 use crate::faces::{Face, FaceId, FaceKind, FaceSet};
 use crate::scene::{Rgb, Scene};
@@ -131,7 +153,7 @@ pub fn clamp_to_shape(shape: Shape, st: DVec2) -> DVec2 {
 /// How faces that are neither triangles nor parallelograms are represented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DomainMode {
-    /// The paper's extended domains (not built yet: such faces are tessellated meanwhile).
+    /// The paper's extended domains (built, but the solver tessellates such faces until issue 5).
     #[default]
     Extended,
     /// The paper's baseline: every such face is split into its triangles.
@@ -161,6 +183,17 @@ impl Surface {
             Shape::Parallelogram => self.frame.cross().length(),
         }
     }
+
+    /// The face's area over its domain's (1 for native triangles and parallelograms up to
+    /// rounding; 0 for a domain of zero area).
+    pub fn fill_ratio(&self) -> f64 {
+        let domain = self.domain_area_m2();
+        if domain > 0.0 {
+            self.area_m2 / domain
+        } else {
+            0.0
+        }
+    }
 }
 
 /// Element roots and the surfaces they make up.
@@ -168,11 +201,14 @@ impl Surface {
 pub struct Domains {
     pub roots: Vec<ElementRoot>,
     pub surfaces: Vec<Surface>,
+    /// Per face id: the extended domain of an extended face (its front side's frame), `None` for
+    /// triangles and parallelograms (and for an extended face whose rings are not finite).
+    pub extended: Vec<Option<ExtendedDomain>>,
 }
 
 /// A rectangle in the face's plane enclosing its outer ring, aligned with its longest edge, with
-/// `u x v` along `normal`. (The minimal-area enclosing parallelogram replaces it with extended
-/// domains.)
+/// `u x v` along `normal`: the frame of an extended face whose domain cannot be built (non-finite
+/// rings, which validated faces never have).
 fn enclosing_rectangle(outer: &[DVec3], normal: DVec3) -> Frame {
     let mut e1 = DVec3::X;
     let mut longest = -1.0;
@@ -197,8 +233,8 @@ fn enclosing_rectangle(outer: &[DVec3], normal: DVec3) -> Frame {
     }
 }
 
-/// The face's own frame and shape (before any side flip).
-fn face_frame(face: &Face) -> (Shape, Frame) {
+/// The face's own frame and shape (before any side flip); `domain` is the extended face's domain.
+fn face_frame(face: &Face, domain: Option<&ExtendedDomain>) -> (Shape, Frame) {
     match face.kind {
         FaceKind::Triangle => {
             let [a, b, c] = [face.outer[0], face.outer[1], face.outer[2]];
@@ -224,7 +260,10 @@ fn face_frame(face: &Face) -> (Shape, Frame) {
         }
         FaceKind::Extended => (
             Shape::Parallelogram,
-            enclosing_rectangle(&face.outer, face.normal),
+            match domain {
+                Some(d) => d.frame,
+                None => enclosing_rectangle(&face.outer, face.normal),
+            },
         ),
     }
 }
@@ -244,14 +283,20 @@ fn sided(frame: Frame, side: Side) -> Frame {
 
 /// Builds the element roots and surfaces: per face side (front before back, in face id order),
 /// one native root for a triangle or parallelogram face, else one triangle root per triangle of
-/// the face's triangulation.
+/// the face's triangulation; every extended face's surface is framed by its extended domain's
+/// parallelogram, and the domain is kept in [`Domains::extended`].
 pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domains {
-    let _ = mode; // Extended domains come next; both modes tessellate meanwhile.
+    let _ = mode; // The solver does not use extended domains yet: both modes tessellate.
     let mut domains = Domains::default();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
         let exitance = material.emission.map(|e| std::f64::consts::PI * e);
-        let (shape, frame) = face_frame(face);
+        let extended = match face.kind {
+            FaceKind::Extended => ExtendedDomain::new(&face.outer, &face.holes, face.normal).ok(),
+            FaceKind::Triangle | FaceKind::Parallelogram => None,
+        };
+        let (shape, frame) = face_frame(face, extended.as_ref());
+        domains.extended.push(extended);
         let sides: &[Side] = if face.double_sided {
             &[Side::Front, Side::Back]
         } else {

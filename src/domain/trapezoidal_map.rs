@@ -1,0 +1,877 @@
+//! Trapezoidal map of a polygon with holes: point location in O(log n) expected (paper 3.3,
+//! figure 5; de Berg et al., *Computational Geometry*, chapter 6).
+//!
+//! Built by randomised incremental construction over the rings' segments, shuffled with a
+//! fixed-seed generator ([`SHUFFLE_SEED`], so a map is reproducible): expected O(n log n) time and
+//! O(n) size. The search structure is a DAG of x-nodes (a segment endpoint), y-nodes (a segment)
+//! and leaves (a trapezoid).
+//!
+//! Degeneracies: "left of" is the lexicographic order `(x, then y)` (a symbolic shear), so vertical
+//! segments and shared x-coordinates need no special case; above/below is Shewchuk's exact
+//! `orient2d`. Segments may share endpoints (consecutive ring edges, rings touching at a vertex).
+//!
+//! Boundary convention: the face is **closed**. [`TrapezoidalMap::locate`] reports
+//! [`Location::Boundary`] for a point exactly (by the exact predicates) on a ring vertex or edge, and
+//! [`TrapezoidalMap::contains`] is true for it. Off the boundary, a point is inside when the
+//! trapezoid holding it lies above a segment whose interior side is up.
+//!
+//! Input contract: rings are closed (last vertex joined to the first), oriented with the interior
+//! on their left (outer counter-clockwise, holes clockwise), and no two segments meet except at
+//! shared endpoints. Construction checks each new segment exactly against the top and bottom
+//! segments of every trapezoid it crosses (a crossing, a vertex inside another segment or a
+//! collinear overlap; any two segments that meet wrongly are caught this way, since just before
+//! they meet the earlier one bounds the trapezoid holding the later), checks neighbours exist,
+//! and at the end that every trapezoid's inside/outside status read from its bottom segment
+//! agrees with that read from its top segment (which catches inconsistently oriented rings); it
+//! returns a [`MapError`] rather than a wrong map when a check fails.
+//!
+//! Layout: construction works on a `Builder` (trapezoids with neighbour links, a DAG whose leaves
+//! are trapezoids). The finished map keeps only the search DAG, renumbered breadth-first from the
+//! root so its top levels share cache lines, with segment endpoints copied into the y-nodes and
+//! leaves reduced to an inside/outside tag in their parent's child slot: a query reads one node
+//! per level and nothing else.
+
+use super::predicates::{lex_less, orient};
+use glam::DVec2;
+
+/// Seed of the segment shuffle: construction is randomised but reproducible.
+pub const SHUFFLE_SEED: u64 = 0x5eed_7a9e_201d_0a11;
+
+/// "No trapezoid / no segment / unbounded".
+const NONE: u32 = u32::MAX;
+
+/// Where a point lies relative to the face.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Location {
+    Inside,
+    Outside,
+    /// Exactly on a ring vertex or edge.
+    Boundary,
+}
+
+/// Why a map could not be built: the rings break the input contract.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+pub enum MapError {
+    #[error("a ring vertex is not finite")]
+    NonFinite,
+    #[error("two ring segments overlap along a line")]
+    Overlap,
+    #[error("a ring vertex lies inside another segment, or segments cross")]
+    Crossing,
+    #[error("rings are inconsistently oriented or cross")]
+    Inconsistent,
+    #[error("too many segments for 32-bit indices")]
+    TooLarge,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Segment {
+    /// Lexicographically smaller endpoint.
+    left: DVec2,
+    right: DVec2,
+    /// The face lies above the segment (it was directed left to right in its ring).
+    interior_above: bool,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Trapezoid {
+    /// Segments bounding it above and below (`NONE`: unbounded).
+    top: u32,
+    bottom: u32,
+    /// Endpoints through which its left and right walls pass (`None`: unbounded).
+    leftp: Option<DVec2>,
+    rightp: Option<DVec2>,
+    /// Neighbours across the left wall sharing its top (upper) or bottom (lower) segment, and
+    /// likewise on the right (`NONE` when there is none).
+    upper_left: u32,
+    lower_left: u32,
+    upper_right: u32,
+    lower_right: u32,
+    /// Its leaf in the search DAG.
+    leaf: u32,
+    /// False once the trapezoid has been split by a later segment.
+    alive: bool,
+}
+
+#[derive(Debug, Clone, Copy)]
+enum Node {
+    /// Left child: points lexicographically before `point`; right: after it.
+    X {
+        point: DVec2,
+        left: u32,
+        right: u32,
+    },
+    /// Children above and below `segment` (within its x-range).
+    Y {
+        segment: u32,
+        above: u32,
+        below: u32,
+    },
+    Leaf {
+        trapezoid: u32,
+    },
+}
+
+/// The map under construction: trapezoids with their links and the search DAG (root: node 0).
+#[derive(Debug, Clone)]
+struct Builder {
+    segments: Vec<Segment>,
+    trapezoids: Vec<Trapezoid>,
+    nodes: Vec<Node>,
+    /// DAG nodes visited locating segment starts plus trapezoids crossed: the construction's work.
+    steps: u64,
+    // Scratch buffers of `insert`, reused across segments.
+    crossed: Vec<u32>,
+    upper_of: Vec<u32>,
+    lower_of: Vec<u32>,
+}
+
+/// A child slot of a [`SearchNode`] naming a leaf outside the face.
+const LEAF_OUTSIDE: u32 = u32::MAX - 1;
+/// A child slot naming a leaf inside the face.
+const LEAF_INSIDE: u32 = u32::MAX;
+
+/// A node of the finished search DAG; children are node indices or a `LEAF_*` tag.
+#[derive(Debug, Clone, Copy)]
+enum SearchNode {
+    X {
+        point: DVec2,
+        left: u32,
+        right: u32,
+    },
+    /// The segment `left -> right` (lexicographic order).
+    Y {
+        left: DVec2,
+        right: DVec2,
+        above: u32,
+        below: u32,
+    },
+}
+
+/// A trapezoidal map's point-location structure.
+#[derive(Debug, Clone)]
+pub struct TrapezoidalMap {
+    /// Breadth-first from the root, `nodes[0]` (empty when the root is a leaf).
+    nodes: Vec<SearchNode>,
+    /// The root's slot: 0, or a `LEAF_*` tag for a map without segments.
+    root: u32,
+    segment_count: usize,
+    trapezoid_count: usize,
+    depth: usize,
+    build_steps: u64,
+}
+
+/// SplitMix64: a tiny, good-enough generator for the shuffle.
+struct SplitMix64(u64);
+
+impl SplitMix64 {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+    /// Uniform in `0..n` (n > 0), by multiply-shift.
+    fn below(&mut self, n: usize) -> usize {
+        ((u128::from(self.next()) * n as u128) >> 64) as usize
+    }
+}
+
+impl TrapezoidalMap {
+    /// Builds the map of `rings` (see the module's input contract). Repeated consecutive vertices
+    /// are skipped; a ring with fewer than two distinct vertices adds nothing.
+    pub fn new(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        Ok(Builder::build(rings)?.freeze())
+    }
+
+    /// Like [`Self::new`], checking the construction's trapezoid links first (tests): panics with
+    /// the broken rule.
+    pub fn new_checked(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        let builder = Builder::build(rings)?;
+        builder.assert_well_formed();
+        Ok(builder.freeze())
+    }
+
+    /// Number of segments in the map.
+    pub fn segment_count(&self) -> usize {
+        self.segment_count
+    }
+
+    /// Number of trapezoids of the map.
+    pub fn trapezoid_count(&self) -> usize {
+        self.trapezoid_count
+    }
+
+    /// Length of the longest search path (nodes; O(log n) expected).
+    pub fn depth(&self) -> usize {
+        self.depth
+    }
+
+    /// DAG nodes visited and trapezoids crossed while building: the construction's work
+    /// (O(n log n) expected), independent of the memory hierarchy.
+    pub fn build_steps(&self) -> u64 {
+        self.build_steps
+    }
+
+    /// Where `p` lies: inside, outside or exactly on the boundary. Non-finite points are outside.
+    pub fn locate(&self, p: DVec2) -> Location {
+        self.locate_counting(p).0
+    }
+
+    /// The closed face contains `p` (inside or on the boundary).
+    pub fn contains(&self, p: DVec2) -> bool {
+        self.locate(p) != Location::Outside
+    }
+
+    /// Nodes visited locating `p` (for measurements).
+    pub fn search_path_length(&self, p: DVec2) -> usize {
+        self.locate_counting(p).1
+    }
+
+    fn locate_counting(&self, p: DVec2) -> (Location, usize) {
+        if !p.is_finite() {
+            return (Location::Outside, 0);
+        }
+        let mut slot = self.root;
+        let mut visited = 0;
+        loop {
+            match slot {
+                LEAF_INSIDE => return (Location::Inside, visited),
+                LEAF_OUTSIDE => return (Location::Outside, visited),
+                _ => {}
+            }
+            visited += 1;
+            match self.nodes[slot as usize] {
+                SearchNode::X { point, left, right } => {
+                    if p == point {
+                        return (Location::Boundary, visited);
+                    }
+                    slot = if lex_less(p, point) { left } else { right };
+                }
+                SearchNode::Y {
+                    left,
+                    right,
+                    above,
+                    below,
+                } => {
+                    let o = orient(left, right, p);
+                    if o == 0.0 {
+                        // The point is within the segment's x-range (the node's region is).
+                        return (Location::Boundary, visited);
+                    }
+                    slot = if o > 0.0 { above } else { below };
+                }
+            }
+        }
+    }
+}
+
+impl Builder {
+    fn build(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        let mut segments = Vec::new();
+        for ring in rings {
+            let n = ring.len();
+            for i in 0..n {
+                let (a, b) = (ring[i], ring[(i + 1) % n]);
+                if !a.is_finite() || !b.is_finite() {
+                    return Err(MapError::NonFinite);
+                }
+                if a == b {
+                    continue;
+                }
+                let interior_above = lex_less(a, b);
+                let (left, right) = if interior_above { (a, b) } else { (b, a) };
+                segments.push(Segment {
+                    left,
+                    right,
+                    interior_above,
+                });
+            }
+        }
+        // Three trapezoids and about seven nodes per segment, with room for the dead ones.
+        if segments.len() > (u32::MAX as usize) / 16 {
+            return Err(MapError::TooLarge);
+        }
+        let mut rng = SplitMix64(SHUFFLE_SEED);
+        for i in (1..segments.len()).rev() {
+            segments.swap(i, rng.below(i + 1));
+        }
+        let mut map = Builder {
+            segments: Vec::with_capacity(segments.len()),
+            trapezoids: Vec::with_capacity(4 * segments.len() + 1),
+            nodes: Vec::with_capacity(8 * segments.len() + 1),
+            steps: 0,
+            crossed: Vec::new(),
+            upper_of: Vec::new(),
+            lower_of: Vec::new(),
+        };
+        map.new_trapezoid(Trapezoid {
+            top: NONE,
+            bottom: NONE,
+            leftp: None,
+            rightp: None,
+            upper_left: NONE,
+            lower_left: NONE,
+            upper_right: NONE,
+            lower_right: NONE,
+            leaf: NONE,
+            alive: true,
+        });
+        for s in segments {
+            map.insert(s)?;
+        }
+        map.check_status_consistency()?;
+        Ok(map)
+    }
+
+    /// The finished map: the DAG renumbered breadth-first, leaves folded into their parents.
+    fn freeze(self) -> TrapezoidalMap {
+        let leaf_tag = |node: &Node| match *node {
+            Node::Leaf { trapezoid } => Some(if self.inside(trapezoid) {
+                LEAF_INSIDE
+            } else {
+                LEAF_OUTSIDE
+            }),
+            _ => None,
+        };
+        let mut new_id = vec![NONE; self.nodes.len()];
+        let mut order: Vec<u32> = Vec::with_capacity(self.nodes.len());
+        let root = match leaf_tag(&self.nodes[0]) {
+            Some(tag) => tag,
+            None => {
+                new_id[0] = 0;
+                order.push(0);
+                0
+            }
+        };
+        // Breadth-first numbering of the internal nodes.
+        let mut head = 0;
+        while head < order.len() {
+            let old = order[head] as usize;
+            head += 1;
+            let children = match self.nodes[old] {
+                Node::X { left, right, .. } => [left, right],
+                Node::Y { above, below, .. } => [above, below],
+                Node::Leaf { .. } => continue,
+            };
+            for c in children {
+                if leaf_tag(&self.nodes[c as usize]).is_none() && new_id[c as usize] == NONE {
+                    new_id[c as usize] = order.len() as u32;
+                    order.push(c);
+                }
+            }
+        }
+        let slot = |c: u32| leaf_tag(&self.nodes[c as usize]).unwrap_or(new_id[c as usize]);
+        let nodes: Vec<SearchNode> = order
+            .iter()
+            .filter_map(|&old| match self.nodes[old as usize] {
+                Node::X { point, left, right } => Some(SearchNode::X {
+                    point,
+                    left: slot(left),
+                    right: slot(right),
+                }),
+                Node::Y {
+                    segment,
+                    above,
+                    below,
+                } => {
+                    let s = &self.segments[segment as usize];
+                    Some(SearchNode::Y {
+                        left: s.left,
+                        right: s.right,
+                        above: slot(above),
+                        below: slot(below),
+                    })
+                }
+                Node::Leaf { .. } => None,
+            })
+            .collect();
+        debug_assert_eq!(nodes.len(), order.len());
+        let depth = longest_path(&nodes, root);
+        TrapezoidalMap {
+            nodes,
+            root,
+            segment_count: self.segments.len(),
+            trapezoid_count: self.trapezoids.iter().filter(|t| t.alive).count(),
+            depth,
+            build_steps: self.steps,
+        }
+    }
+
+    /// The face lies in trapezoid `t` (read from its bottom segment).
+    fn inside(&self, t: u32) -> bool {
+        let b = self.trapezoids[t as usize].bottom;
+        b != NONE && self.segments[b as usize].interior_above
+    }
+
+    fn new_trapezoid(&mut self, mut t: Trapezoid) -> u32 {
+        let id = self.trapezoids.len() as u32;
+        t.leaf = self.nodes.len() as u32;
+        self.nodes.push(Node::Leaf { trapezoid: id });
+        self.trapezoids.push(t);
+        id
+    }
+
+    fn push_node(&mut self, n: Node) -> u32 {
+        self.nodes.push(n);
+        (self.nodes.len() - 1) as u32
+    }
+
+    /// The trapezoid a new segment `p -> q` starts in: the one just right of `p` on its side of
+    /// every segment through `p`.
+    fn locate_start(&mut self, p: DVec2, q: DVec2) -> Result<u32, MapError> {
+        let mut node = 0u32;
+        loop {
+            self.steps += 1;
+            match self.nodes[node as usize] {
+                Node::X { point, left, right } => {
+                    // A shared endpoint goes right: the new segment extends to the right.
+                    node = if lex_less(p, point) { left } else { right };
+                }
+                Node::Y {
+                    segment,
+                    above,
+                    below,
+                } => {
+                    let s = &self.segments[segment as usize];
+                    let mut o = orient(s.left, s.right, p);
+                    if o == 0.0 {
+                        if p != s.left {
+                            return Err(MapError::Crossing);
+                        }
+                        // Both start at p: compare directions.
+                        o = orient(s.left, s.right, q);
+                        if o == 0.0 {
+                            return Err(MapError::Overlap);
+                        }
+                    }
+                    node = if o > 0.0 { above } else { below };
+                }
+                Node::Leaf { trapezoid } => return Ok(trapezoid),
+            }
+        }
+    }
+
+    fn trap(&self, t: u32) -> &Trapezoid {
+        &self.trapezoids[t as usize]
+    }
+
+    fn trap_mut(&mut self, t: u32) -> &mut Trapezoid {
+        &mut self.trapezoids[t as usize]
+    }
+
+    /// Points the left-pointing links of `t`'s right neighbour `n` that referred to `old` at `new`.
+    fn relink_left(&mut self, n: u32, old: u32, new_upper: u32, new_lower: u32) {
+        if n == NONE {
+            return;
+        }
+        let nb = self.trap_mut(n);
+        if nb.upper_left == old {
+            nb.upper_left = new_upper;
+        }
+        if nb.lower_left == old {
+            nb.lower_left = new_lower;
+        }
+    }
+
+    /// Points the right-pointing links of `t`'s left neighbour `n` that referred to `old` at `new`.
+    fn relink_right(&mut self, n: u32, old: u32, new_upper: u32, new_lower: u32) {
+        if n == NONE {
+            return;
+        }
+        let nb = self.trap_mut(n);
+        if nb.upper_right == old {
+            nb.upper_right = new_upper;
+        }
+        if nb.lower_right == old {
+            nb.lower_right = new_lower;
+        }
+    }
+
+    fn insert(&mut self, s: Segment) -> Result<(), MapError> {
+        let (p, q) = (s.left, s.right);
+        debug_assert!(lex_less(p, q), "segment endpoints out of order");
+        let seg = self.segments.len() as u32;
+        self.segments.push(s);
+
+        // The trapezoids the segment crosses, left to right.
+        let start = self.locate_start(p, q)?;
+        let mut crossed = std::mem::take(&mut self.crossed);
+        let mut upper_of = std::mem::take(&mut self.upper_of);
+        let mut lower_of = std::mem::take(&mut self.lower_of);
+        crossed.clear();
+        upper_of.clear();
+        lower_of.clear();
+        crossed.push(start);
+        loop {
+            let t = self.trap(crossed[crossed.len() - 1]);
+            // The segment must stay between the trapezoid's top and bottom: a crossing of any
+            // existing segment shows up here first (just before it, that segment bounds the
+            // trapezoid holding the new one).
+            for bound in [t.top, t.bottom] {
+                if bound != NONE {
+                    let e = &self.segments[bound as usize];
+                    segments_conflict(p, q, e.left, e.right)?;
+                }
+            }
+            let Some(r) = t.rightp else { break };
+            if !lex_less(r, q) {
+                break;
+            }
+            let o = orient(p, q, r);
+            let next = if o > 0.0 {
+                t.lower_right
+            } else if o < 0.0 {
+                t.upper_right
+            } else {
+                return Err(MapError::Crossing);
+            };
+            if next == NONE {
+                return Err(MapError::Inconsistent);
+            }
+            debug_assert!(self.trap(next).alive && self.trap(next).leftp == Some(r));
+            crossed.push(next);
+        }
+        self.steps += crossed.len() as u64;
+
+        let first = crossed[0];
+        let last = crossed[crossed.len() - 1];
+        let d0 = *self.trap(first);
+        let blank = Trapezoid {
+            top: NONE,
+            bottom: NONE,
+            leftp: Some(p),
+            rightp: None,
+            upper_left: NONE,
+            lower_left: NONE,
+            upper_right: NONE,
+            lower_right: NONE,
+            leaf: NONE,
+            alive: true,
+        };
+
+        // The pieces above and below the segment in the first crossed trapezoid.
+        let mut upper = self.new_trapezoid(Trapezoid {
+            top: d0.top,
+            bottom: seg,
+            ..blank
+        });
+        let mut lower = self.new_trapezoid(Trapezoid {
+            top: seg,
+            bottom: d0.bottom,
+            ..blank
+        });
+        // The piece left of p, unless p is already d0's left wall point.
+        let left_piece = if d0.leftp != Some(p) {
+            let a = self.new_trapezoid(Trapezoid {
+                top: d0.top,
+                bottom: d0.bottom,
+                leftp: d0.leftp,
+                rightp: Some(p),
+                upper_left: d0.upper_left,
+                lower_left: d0.lower_left,
+                upper_right: upper,
+                lower_right: lower,
+                ..blank
+            });
+            self.relink_right(d0.upper_left, first, a, a);
+            self.relink_right(d0.lower_left, first, a, a);
+            self.trap_mut(upper).upper_left = a;
+            self.trap_mut(lower).lower_left = a;
+            Some(a)
+        } else {
+            self.trap_mut(upper).upper_left = d0.upper_left;
+            self.trap_mut(lower).lower_left = d0.lower_left;
+            self.relink_right(d0.upper_left, first, upper, NONE);
+            self.relink_right(d0.lower_left, first, NONE, lower);
+            None
+        };
+        upper_of.push(upper);
+        lower_of.push(lower);
+
+        // Across each wall the segment passes, the piece on the wall's side is cut; the other
+        // side's piece continues (the wall no longer reaches past the segment).
+        for j in 1..crossed.len() {
+            let (prev_id, cur_id) = (crossed[j - 1], crossed[j]);
+            let (prev, cur) = (*self.trap(prev_id), *self.trap(cur_id));
+            let Some(r) = cur.leftp else {
+                return Err(MapError::Inconsistent);
+            };
+            if orient(p, q, r) > 0.0 {
+                // The wall point is above: the upper piece ends at r, a new one starts.
+                let new_upper = self.new_trapezoid(Trapezoid {
+                    top: cur.top,
+                    bottom: seg,
+                    leftp: Some(r),
+                    upper_left: cur.upper_left,
+                    lower_left: upper,
+                    ..blank
+                });
+                let up = self.trap_mut(upper);
+                up.rightp = Some(r);
+                up.upper_right = prev.upper_right;
+                up.lower_right = new_upper;
+                self.relink_left(prev.upper_right, prev_id, upper, NONE);
+                self.relink_right(cur.upper_left, cur_id, new_upper, NONE);
+                upper = new_upper;
+                if prev.bottom != cur.bottom {
+                    return Err(MapError::Inconsistent);
+                }
+            } else {
+                let new_lower = self.new_trapezoid(Trapezoid {
+                    top: seg,
+                    bottom: cur.bottom,
+                    leftp: Some(r),
+                    upper_left: lower,
+                    lower_left: cur.lower_left,
+                    ..blank
+                });
+                let lo = self.trap_mut(lower);
+                lo.rightp = Some(r);
+                lo.lower_right = prev.lower_right;
+                lo.upper_right = new_lower;
+                self.relink_left(prev.lower_right, prev_id, NONE, lower);
+                self.relink_right(cur.lower_left, cur_id, NONE, new_lower);
+                lower = new_lower;
+                if prev.top != cur.top {
+                    return Err(MapError::Inconsistent);
+                }
+            }
+            upper_of.push(upper);
+            lower_of.push(lower);
+        }
+
+        // The end: the piece right of q, unless q is already the last trapezoid's right wall point.
+        let dk = *self.trap(last);
+        self.trap_mut(upper).rightp = Some(q);
+        self.trap_mut(lower).rightp = Some(q);
+        let right_piece = if dk.rightp != Some(q) {
+            let b = self.new_trapezoid(Trapezoid {
+                top: dk.top,
+                bottom: dk.bottom,
+                leftp: Some(q),
+                rightp: dk.rightp,
+                upper_left: upper,
+                lower_left: lower,
+                upper_right: dk.upper_right,
+                lower_right: dk.lower_right,
+                ..blank
+            });
+            self.relink_left(dk.upper_right, last, b, b);
+            self.relink_left(dk.lower_right, last, b, b);
+            self.trap_mut(upper).upper_right = b;
+            self.trap_mut(lower).lower_right = b;
+            Some(b)
+        } else {
+            self.trap_mut(upper).upper_right = dk.upper_right;
+            self.trap_mut(lower).lower_right = dk.lower_right;
+            self.relink_left(dk.upper_right, last, upper, NONE);
+            self.relink_left(dk.lower_right, last, NONE, lower);
+            None
+        };
+
+        // Replace the crossed trapezoids' leaves by their sub-DAGs.
+        let n = crossed.len();
+        for (j, &t) in crossed.iter().enumerate() {
+            let above = self.trap(upper_of[j]).leaf;
+            let below = self.trap(lower_of[j]).leaf;
+            let mut top = Node::Y {
+                segment: seg,
+                above,
+                below,
+            };
+            if j == n - 1 {
+                if let Some(b) = right_piece {
+                    let y = self.push_node(top);
+                    let right = self.trap(b).leaf;
+                    top = Node::X {
+                        point: q,
+                        left: y,
+                        right,
+                    };
+                }
+            }
+            if j == 0 {
+                if let Some(a) = left_piece {
+                    let inner = self.push_node(top);
+                    let left = self.trap(a).leaf;
+                    top = Node::X {
+                        point: p,
+                        left,
+                        right: inner,
+                    };
+                }
+            }
+            let leaf = self.trap(t).leaf;
+            self.nodes[leaf as usize] = top;
+            let dead = self.trap_mut(t);
+            dead.alive = false;
+            dead.leaf = NONE;
+        }
+        self.crossed = crossed;
+        self.upper_of = upper_of;
+        self.lower_of = lower_of;
+        Ok(())
+    }
+
+    /// Every live trapezoid's status read from its bottom segment equals that read from its top.
+    fn check_status_consistency(&self) -> Result<(), MapError> {
+        for (i, t) in self.trapezoids.iter().enumerate() {
+            if !t.alive {
+                continue;
+            }
+            let from_top = t.top != NONE && !self.segments[t.top as usize].interior_above;
+            if self.inside(i as u32) != from_top {
+                return Err(MapError::Inconsistent);
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks the map's structure (tests and debugging): neighbour links are mutual and share the
+    /// top or bottom segment and the wall point; every live trapezoid has a leaf pointing back at
+    /// it; trapezoids have their walls in lexicographic order. Panics with the broken rule.
+    pub fn assert_well_formed(&self) {
+        for (i, t) in self.trapezoids.iter().enumerate() {
+            if !t.alive {
+                continue;
+            }
+            let i = i as u32;
+            assert!(
+                matches!(self.nodes[t.leaf as usize], Node::Leaf { trapezoid } if trapezoid == i),
+                "trapezoid {i}: its leaf does not point back"
+            );
+            if let (Some(l), Some(r)) = (t.leftp, t.rightp) {
+                assert!(lex_less(l, r), "trapezoid {i}: walls out of order");
+            }
+            let check = |n: u32, back: fn(&Trapezoid) -> u32, same: bool, what: &str| {
+                if n == NONE {
+                    return;
+                }
+                let nb = &self.trapezoids[n as usize];
+                assert!(nb.alive, "trapezoid {i}: {what} neighbour {n} is dead");
+                assert_eq!(
+                    back(nb),
+                    i,
+                    "trapezoid {i}: {what} neighbour {n} does not link back"
+                );
+                assert!(
+                    same,
+                    "trapezoid {i}: {what} neighbour {n} shares no boundary segment"
+                );
+            };
+            if t.upper_left != NONE {
+                let nb = &self.trapezoids[t.upper_left as usize];
+                check(
+                    t.upper_left,
+                    |x| x.upper_right,
+                    nb.top == t.top && nb.rightp == t.leftp,
+                    "upper left",
+                );
+            }
+            if t.lower_left != NONE {
+                let nb = &self.trapezoids[t.lower_left as usize];
+                check(
+                    t.lower_left,
+                    |x| x.lower_right,
+                    nb.bottom == t.bottom && nb.rightp == t.leftp,
+                    "lower left",
+                );
+            }
+            if t.upper_right != NONE {
+                let nb = &self.trapezoids[t.upper_right as usize];
+                check(
+                    t.upper_right,
+                    |x| x.upper_left,
+                    nb.top == t.top && nb.leftp == t.rightp,
+                    "upper right",
+                );
+            }
+            if t.lower_right != NONE {
+                let nb = &self.trapezoids[t.lower_right as usize];
+                check(
+                    t.lower_right,
+                    |x| x.lower_left,
+                    nb.bottom == t.bottom && nb.leftp == t.rightp,
+                    "lower right",
+                );
+            }
+        }
+    }
+}
+
+fn sign(x: f64) -> i8 {
+    if x > 0.0 {
+        1
+    } else if x < 0.0 {
+        -1
+    } else {
+        0
+    }
+}
+
+/// Whether the segments `p -> q` and `a -> b` (each lexicographically ordered) meet other than at a
+/// shared endpoint: a crossing, an endpoint inside the other segment, or a collinear overlap.
+fn segments_conflict(p: DVec2, q: DVec2, a: DVec2, b: DVec2) -> Result<(), MapError> {
+    let (o1, o2) = (sign(orient(p, q, a)), sign(orient(p, q, b)));
+    if o1 == 0 && o2 == 0 {
+        // Collinear: their lexicographic ranges may share at most an endpoint.
+        return if lex_less(p, b) && lex_less(a, q) {
+            Err(MapError::Overlap)
+        } else {
+            Ok(())
+        };
+    }
+    if p == a || p == b || q == a || q == b {
+        return Ok(()); // Not collinear: they meet only there.
+    }
+    let (o3, o4) = (sign(orient(a, b, p)), sign(orient(a, b, q)));
+    if o1 * o2 <= 0 && o3 * o4 <= 0 {
+        Err(MapError::Crossing)
+    } else {
+        Ok(())
+    }
+}
+
+/// Nodes on the longest path from `root` to a leaf (memoised; children precede nothing in
+/// particular in a DAG, so a post-order walk with a stack).
+fn longest_path(nodes: &[SearchNode], root: u32) -> usize {
+    if root >= LEAF_OUTSIDE {
+        return 0;
+    }
+    let children = |n: u32| match nodes[n as usize] {
+        SearchNode::X { left, right, .. } => [left, right],
+        SearchNode::Y { above, below, .. } => [above, below],
+    };
+    let mut depth = vec![0usize; nodes.len()];
+    let mut stack = vec![(root, false)];
+    while let Some((n, expanded)) = stack.pop() {
+        if depth[n as usize] > 0 {
+            continue;
+        }
+        let kids = children(n);
+        if expanded {
+            let d = kids
+                .iter()
+                .map(|&c| {
+                    if c >= LEAF_OUTSIDE {
+                        0
+                    } else {
+                        depth[c as usize]
+                    }
+                })
+                .max()
+                .unwrap_or(0);
+            depth[n as usize] = d + 1;
+        } else {
+            stack.push((n, true));
+            for c in kids {
+                if c < LEAF_OUTSIDE && depth[c as usize] == 0 {
+                    stack.push((c, false));
+                }
+            }
+        }
+    }
+    depth[root as usize]
+}
