@@ -26,14 +26,9 @@ pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
     if scene.triangles.is_empty() {
         return Err(SceneError::Unsolvable("the scene has no triangles".into()));
     }
-    if scene.emissive_triangle_count() == 0 {
-        if scene.lights.is_empty() {
-            return Err(SceneError::Unsolvable(
-                "nothing to solve: no material emits (emissiveFactor is zero everywhere) and there are no KHR_lights_punctual lights".into(),
-            ));
-        }
+    if scene.emissive_triangle_count() == 0 && scene.lights.is_empty() {
         return Err(SceneError::Unsolvable(
-            "the scene is lit only by KHR_lights_punctual lights, which this version does not solve yet; add an emissive surface".into(),
+            "nothing to solve: no material emits (emissiveFactor is zero everywhere) and there are no KHR_lights_punctual lights".into(),
         ));
     }
     Ok(())
@@ -74,6 +69,7 @@ pub fn bake(
     let roots = std::mem::take(&mut prepared.roots);
     let solution = solve(
         roots,
+        &scene.lights,
         &prepared.visibility,
         prepared.diagonal,
         params,

@@ -14,11 +14,12 @@
 pub mod basis;
 pub mod hierarchy;
 pub mod kernel;
+pub mod lights;
 pub mod quadrature;
 pub mod visibility;
 
 use crate::domain::{ElementRoot, Shape};
-use crate::scene::Rgb;
+use crate::scene::{PunctualLight, Rgb};
 use basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
 use glam::{DVec2, DVec3};
 use hierarchy::Hierarchy;
@@ -39,7 +40,7 @@ pub enum Quantity {
 
 /// Default refinement tolerance: a transfer is refined while its estimated error exceeds this
 /// fraction of the scene's emitted power.
-pub const DEFAULT_TOLERANCE: f64 = 1e-4;
+pub const DEFAULT_TOLERANCE: f64 = 1e-5;
 /// Deepest subdivision of an element (4^depth sub-elements at most).
 pub const MAX_DEPTH: u8 = 9;
 /// Elements are not split below this edge length, relative to the scene diagonal.
@@ -388,6 +389,23 @@ impl ShotContext<'_> {
         // whole unoccluded transfer is at stake.
         let mut partial = any_visible && any_blocked;
         let threshold = self.threshold;
+        if !partial && any_visible && err * rp.area <= threshold {
+            // The quadrature points are interior: the irradiance near the element's border (the
+            // falloff towards a room's corners) is not sampled. Compare the exact unoccluded
+            // irradiance of the source's mean at points near the corners with the projection.
+            let mut phi = [0.0; MAX_FUNCTIONS];
+            for &st in corner_probe_points(rroot.shape) {
+                let x = rp.point(st);
+                let f = kernel::point_polygon_form_factor(x, rroot.normal, &polygon);
+                rbasis.eval(st, &mut phi);
+                let mut e = 0.0;
+                for ch in 0..3 {
+                    let proj: f64 = (0..nr).map(|a| dh[a][ch] * phi[a]).sum();
+                    e += weight[ch] * (f * src.coeffs[0][ch] - proj).abs();
+                }
+                err = err.max(e);
+            }
+        }
         if !partial && err * rp.area <= threshold && unoccluded_max * rp.area > threshold {
             // The quadrature rays agree, but they sample the interior only: a shadow boundary near
             // an element's border (a wall standing on a slab, an eave over a wall) slips between
@@ -401,7 +419,14 @@ impl ShotContext<'_> {
         if err > threshold {
             let can_split_r = rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge;
             let can_split_s = src.depth < MAX_DEPTH && sp.min_edge() * 0.5 >= self.min_edge;
-            let split_source = can_split_s && (!can_split_r || (partial && sp.area > rp.area));
+            // The larger side is split, as in hierarchical radiosity; but splitting a source
+            // whose radiosity has no finer detail (a leaf, or an emitter's constant) only helps
+            // where visibility is partial.
+            let source_detail = src
+                .node
+                .is_some_and(|n| !self.source_hierarchy.nodes[n].is_leaf());
+            let split_source =
+                can_split_s && (!can_split_r || (sp.area > rp.area && (partial || source_detail)));
             if split_source {
                 for child in self.source_children(src) {
                     self.transfer(&child, rcv_index, rcv, b);
@@ -500,6 +525,7 @@ fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
 /// next check (between and inside shots).
 pub fn solve(
     roots: Vec<ElementRoot>,
+    lights: &[PunctualLight],
     visibility: &Visibility,
     diagonal: f64,
     params: SolverParams,
@@ -524,14 +550,62 @@ pub fn solve(
             emitted[ch] += r.exitance[ch] * r.area_m2;
         }
     }
-    let emitted_total = mean_rgb_sum(emitted);
     let links = AtomicU64::new(0);
     let capped = AtomicU64::new(0);
-    let threshold = params.tolerance * emitted_total;
+    // A shadow ray towards a directional light ends this far away: beyond the scene.
+    let far = 4.0 * diagonal;
+    let light_estimate: f64 = lights
+        .iter()
+        .map(|l| lights::unoccluded_power_estimate(l, &roots, far))
+        .sum();
+    let threshold = params.tolerance * (mean_rgb_sum(emitted) + light_estimate);
     let min_edge = MIN_EDGE_REL * diagonal;
     let facing_eps = 1e-9 * diagonal;
     let mut convergence = Vec::new();
     let mut iterations = 0u64;
+
+    // Punctual lights shoot first; what they deliver onto the surfaces counts as emitted.
+    let mut stop = StopReason::Converged;
+    for light in lights {
+        if cancel.load(Ordering::Relaxed) {
+            break;
+        }
+        let shot = lights::LightShot {
+            roots: &roots,
+            bases: &bases,
+            rules: &rules,
+            visibility,
+            light,
+            threshold,
+            min_edge,
+            far,
+            quantity: params.quantity,
+            links: &links,
+            capped: &capped,
+            cancel,
+        };
+        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
+            if h.nodes.is_empty() {
+                return;
+            }
+            shot.transfer(ri, h, 0);
+            if h.touched {
+                h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, true);
+            }
+        });
+        iterations += 1;
+    }
+    if !lights.is_empty() {
+        // The root's coefficient 0 is its mean direct irradiance (orthonormal basis, measure 1).
+        for (h, r) in hierarchies.iter().zip(&roots) {
+            if let Some(hd) = h.hd.first() {
+                for ch in 0..3 {
+                    emitted[ch] += hd[ch] * r.area_m2;
+                }
+            }
+        }
+    }
+    let emitted_total = mean_rgb_sum(emitted);
     let unshot_power = |h: &Hierarchy, r: &ElementRoot| -> f64 { mean_rgb_sum(h.u[0]) * r.area_m2 };
 
     // Emitters' unshot radiosity starts at their exitance; direct shots send it first.
@@ -554,7 +628,6 @@ pub fn solve(
             0.0
         }
     };
-    let mut stop = StopReason::Converged;
     let mut direct_iter = direct_queue.into_iter();
     loop {
         let r = ratio(&hierarchies);

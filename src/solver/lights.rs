@@ -1,0 +1,260 @@
+//! Punctual lights (`KHR_lights_punctual`): point, spot and directional lights shine directly on
+//! the receivers as the solve's first shots (DESIGN.md 5.1).
+//!
+//! Owns [`unoccluded_irradiance`] (the light's irradiance at a point before occlusion) and
+//! [`LightShot`], which projects a light's direct irradiance onto a receiver's basis from its
+//! quadrature points, one visibility ray per point, and refines the receiver with the same oracle
+//! as element transfers (projection error, partial visibility, rays from the element's corners).
+//! The light's delivered power, the integral of that irradiance over the receivers, counts in
+//! the emitted power of `unshot_ratio` (CONTRACT). Units: intensity in W/sr (candela) for point
+//! and spot lights, irradiance in W/m^2 (lux) for directional lights.
+
+use super::basis::MAX_FUNCTIONS;
+use super::hierarchy::Hierarchy;
+use super::visibility::Visibility;
+use super::{corner_probe_points, mean_rgb_sum, Bases, Patch, Quantity, Rules, MAX_DEPTH};
+use crate::domain::ElementRoot;
+use crate::scene::{LightKind, PunctualLight, Rgb};
+use glam::DVec3;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// The direct irradiance of `light` at `x` on a surface of unit normal `n`, ignoring occlusion,
+/// and the point a shadow ray from `x` must reach (the light, or far along a directional light).
+/// `far` is a distance beyond the scene.
+pub fn unoccluded_irradiance(light: &PunctualLight, x: DVec3, n: DVec3, far: f64) -> (Rgb, DVec3) {
+    let scale = |k: f64| light.intensity.map(|c| c * k);
+    match light.kind {
+        LightKind::Point { position } => {
+            let d = position - x;
+            let r2 = d.length_squared();
+            if r2 <= 0.0 {
+                return ([0.0; 3], position);
+            }
+            let cos = n.dot(d) / r2.sqrt();
+            (scale((cos / r2).max(0.0)), position)
+        }
+        LightKind::Spot {
+            position,
+            direction,
+            inner_cone_angle,
+            outer_cone_angle,
+        } => {
+            let d = position - x;
+            let r2 = d.length_squared();
+            if r2 <= 0.0 {
+                return ([0.0; 3], position);
+            }
+            let r = r2.sqrt();
+            let cos = n.dot(d) / r;
+            // The glTF extension's smooth cone falloff (its recommended implementation).
+            let (cos_outer, cos_inner) = (outer_cone_angle.cos(), inner_cone_angle.cos());
+            let angle_scale = 1.0 / (cos_inner - cos_outer).max(1e-3);
+            let cd = direction.dot(-d / r);
+            let t = ((cd - cos_outer) * angle_scale).clamp(0.0, 1.0);
+            (scale((cos / r2).max(0.0) * t * t), position)
+        }
+        LightKind::Directional { direction } => {
+            let cos = -n.dot(direction);
+            (scale(cos.max(0.0)), x - direction * far)
+        }
+    }
+}
+
+/// The power a light delivers onto `roots` if nothing occluded it, from each root's centroid: the
+/// scale of the solve's error threshold before the light has shot.
+pub fn unoccluded_power_estimate(light: &PunctualLight, roots: &[ElementRoot], far: f64) -> f64 {
+    roots
+        .iter()
+        .map(|r| {
+            let c = r.corners();
+            let centroid = c.iter().copied().sum::<DVec3>() / c.len() as f64;
+            mean_rgb_sum(unoccluded_irradiance(light, centroid, r.normal, far).0) * r.area_m2
+        })
+        .sum()
+}
+
+/// One light's shot onto the receivers.
+pub(super) struct LightShot<'a> {
+    pub roots: &'a [ElementRoot],
+    pub bases: &'a Bases,
+    pub rules: &'a Rules,
+    pub visibility: &'a Visibility,
+    pub light: &'a PunctualLight,
+    /// Absolute error threshold, in W (sum over channels).
+    pub threshold: f64,
+    pub min_edge: f64,
+    pub far: f64,
+    pub quantity: Quantity,
+    pub links: &'a AtomicU64,
+    pub capped: &'a AtomicU64,
+    pub cancel: &'a AtomicBool,
+}
+
+impl LightShot<'_> {
+    /// Gathers the light's direct irradiance into node `b` of `rcv`, refining as needed.
+    pub fn transfer(&self, rcv_index: usize, rcv: &mut Hierarchy, b: usize) {
+        if self.cancel.load(Ordering::Relaxed) {
+            return;
+        }
+        let rroot = &self.roots[rcv_index];
+        let rbasis = self.bases.of(rroot.shape);
+        let nr = rbasis.len();
+        let rnode = rcv.nodes[b];
+        let rp = Patch::new(rroot, &rnode.map);
+        let rrule = self.rules.of(rroot.shape);
+        let ignore = [rroot.face.0; 2];
+        let weight: Rgb = match self.quantity {
+            Quantity::Radiance => rroot.rho,
+            Quantity::Irradiance => [1.0; 3],
+        };
+        let weighted = |e: Rgb| (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
+        let mut e_k = [[0.0f64; 3]; 64];
+        let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
+        let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
+        let (mut any_visible, mut any_blocked) = (false, false);
+        let mut unoccluded_max: f64 = 0.0;
+        for (k, q) in rrule.iter().enumerate() {
+            rbasis.eval(q.st, &mut psi[k]);
+            let x = rp.point(q.st);
+            let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
+            if mean_rgb_sum(e) <= 0.0 {
+                continue;
+            }
+            unoccluded_max = unoccluded_max.max(weighted(e));
+            if self.visibility.visible(x, target, ignore) {
+                any_visible = true;
+                e_k[k] = e;
+                for a in 0..nr {
+                    for ch in 0..3 {
+                        dh[a][ch] += q.weight * psi[k][a] * e[ch];
+                    }
+                }
+            } else {
+                any_blocked = true;
+            }
+        }
+        // Oracle: as for element transfers (see `ShotContext::transfer`).
+        let mut err: f64 = 0.0;
+        for k in 0..rrule.len() {
+            let mut e = 0.0;
+            for ch in 0..3 {
+                let proj: f64 = (0..nr).map(|a| dh[a][ch] * psi[k][a]).sum();
+                e += weight[ch] * (e_k[k][ch] - proj).abs();
+            }
+            err = err.max(e);
+        }
+        let mut partial = any_visible && any_blocked;
+        if !partial && any_visible && err * rp.area <= self.threshold {
+            // Near the element's corners, which the interior quadrature points do not sample.
+            let mut phi = [0.0; MAX_FUNCTIONS];
+            for &st in corner_probe_points(rroot.shape) {
+                let (e, _) =
+                    unoccluded_irradiance(self.light, rp.point(st), rroot.normal, self.far);
+                rbasis.eval(st, &mut phi);
+                let mut d = 0.0;
+                for ch in 0..3 {
+                    let proj: f64 = (0..nr).map(|a| dh[a][ch] * phi[a]).sum();
+                    d += weight[ch] * (e[ch] - proj).abs();
+                }
+                err = err.max(d);
+            }
+        }
+        if !partial && err * rp.area <= self.threshold && unoccluded_max * rp.area > self.threshold
+        {
+            partial = self.corner_rays_disagree(&rp, rroot, any_visible);
+        }
+        if partial {
+            err = err.max(unoccluded_max);
+        }
+        if err * rp.area > self.threshold {
+            if rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge {
+                let first = if rnode.is_leaf() {
+                    rcv.split(b, rbasis, rroot.shape)
+                } else {
+                    rnode.first_child as usize
+                };
+                for c in 0..4 {
+                    self.transfer(rcv_index, rcv, first + c);
+                }
+                return;
+            }
+            self.capped.fetch_add(1, Ordering::Relaxed);
+        }
+        self.links.fetch_add(1, Ordering::Relaxed);
+        for a in 0..nr {
+            for ch in 0..3 {
+                rcv.dh[b * nr + a][ch] += dh[a][ch];
+            }
+        }
+        rcv.touched = true;
+    }
+
+    /// Do shadow rays from points near the receiver's corners disagree with the quadrature rays?
+    fn corner_rays_disagree(&self, rp: &Patch, rroot: &ElementRoot, visible: bool) -> bool {
+        let ignore = [rroot.face.0; 2];
+        corner_probe_points(rroot.shape).iter().any(|&st| {
+            let x = rp.point(st);
+            let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
+            mean_rgb_sum(e) > 0.0 && self.visibility.visible(x, target, ignore) != visible
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn light(kind: LightKind) -> PunctualLight {
+        PunctualLight {
+            name: "l".into(),
+            kind,
+            intensity: [100.0, 50.0, 10.0],
+        }
+    }
+
+    #[test]
+    fn point_light_follows_the_inverse_square_and_cosine_laws() {
+        let l = light(LightKind::Point {
+            position: DVec3::new(0.0, 2.0, 0.0),
+        });
+        let (e, target) = unoccluded_irradiance(&l, DVec3::ZERO, DVec3::Y, 100.0);
+        assert_eq!(target, DVec3::new(0.0, 2.0, 0.0));
+        assert!((e[0] - 25.0).abs() < 1e-12 && (e[2] - 2.5).abs() < 1e-12);
+        // 45 degrees off the normal at distance 2 sqrt 2: I cos / r^2 = 100 (1/sqrt 2) / 8.
+        let (e, _) = unoccluded_irradiance(&l, DVec3::new(2.0, 0.0, 0.0), DVec3::Y, 100.0);
+        assert!((e[0] - 100.0 / 8.0 / 2f64.sqrt()).abs() < 1e-12);
+        // Behind the surface: nothing.
+        let (e, _) = unoccluded_irradiance(&l, DVec3::ZERO, DVec3::NEG_Y, 100.0);
+        assert_eq!(e, [0.0; 3]);
+    }
+
+    #[test]
+    fn spot_light_is_full_inside_its_inner_cone_and_dark_outside_its_outer_cone() {
+        let l = light(LightKind::Spot {
+            position: DVec3::new(0.0, 1.0, 0.0),
+            direction: DVec3::NEG_Y,
+            inner_cone_angle: 0.3,
+            outer_cone_angle: 0.5,
+        });
+        let at = |x: f64| unoccluded_irradiance(&l, DVec3::new(x, 0.0, 0.0), DVec3::Y, 10.0).0[0];
+        assert!((at(0.0) - 100.0).abs() < 1e-12);
+        // Inside the inner cone (tan 0.3 = 0.309): full intensity, cos^3 law.
+        let c = (1.0f64 / (1.0 + 0.25f64 * 0.25)).sqrt();
+        assert!((at(0.25) - 100.0 * c * c * c).abs() < 1e-9);
+        // Outside the outer cone (tan 0.5 = 0.546): dark.
+        assert_eq!(at(0.6), 0.0);
+        // Between: strictly between.
+        let mid = at(0.42);
+        let c = (1.0f64 / (1.0 + 0.42f64 * 0.42)).sqrt();
+        assert!(mid > 0.0 && mid < 100.0 * c * c * c);
+    }
+
+    #[test]
+    fn directional_light_is_its_irradiance_times_the_cosine() {
+        let d = DVec3::new(1.0, -1.0, 0.0).normalize();
+        let l = light(LightKind::Directional { direction: d });
+        let (e, target) = unoccluded_irradiance(&l, DVec3::ZERO, DVec3::Y, 10.0);
+        assert!((e[0] - 100.0 / 2f64.sqrt()).abs() < 1e-12);
+        assert!((target - (-d * 10.0)).length() < 1e-12);
+    }
+}
