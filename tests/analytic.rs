@@ -248,3 +248,44 @@ fn light_reaching_only_the_border_of_an_element_is_found() {
         );
     }
 }
+
+/// A directional light alone: a square facing it at 60 degrees gets E = I cos 60, so its radiance is
+/// rho I cos 60 / pi everywhere; a second square in its shadow (below the first) gets nothing direct.
+#[test]
+fn a_directional_light_alone_lights_what_it_faces_and_not_what_is_in_shadow() {
+    use wavrad::scene::{LightKind, PunctualLight};
+    let mut b = SceneBuilder::new();
+    let top = b.material([0.8; 3], [0.0; 3], false);
+    let under = b.material([0.0; 3], [0.0; 3], false);
+    b.quad(top, DVec3::new(-0.5, 0.0, -0.5), DVec3::Z, DVec3::X, 1); // normal +y at y = 0
+                                                                     // 0.2 below, shifted so that the top square shadows it whole (tan 60 x 0.2 = 0.35).
+    b.quad(
+        under,
+        DVec3::new(-0.1, -0.2, -0.25),
+        DVec3::Z * 0.5,
+        DVec3::X * 0.5,
+        1,
+    );
+    let direction = DVec3::new((60f64).to_radians().sin(), -(60f64).to_radians().cos(), 0.0);
+    b.light(PunctualLight {
+        name: "sun".into(),
+        kind: LightKind::Directional { direction },
+        intensity: [3.0; 3],
+    });
+    for order in [1, 2, 3] {
+        let (_, sol) = solve_glb(&b.to_glb(), params(order));
+        let expected = 0.8 * 3.0 * 0.5 / std::f64::consts::PI;
+        for (i, r) in sol.roots.iter().enumerate() {
+            if r.material == top {
+                let mean = sol.mean_value(i)[0];
+                assert!(
+                    (mean - expected).abs() < 1e-3 * expected,
+                    "M{order}: lit square {mean} vs {expected}"
+                );
+            }
+        }
+        // The light delivered I cos 60 on the top square's 1 m^2 and nothing on the shadowed one:
+        // that is the emitted power.
+        assert!((sol.stats.emitted_power[0] - 1.5).abs() < 1e-3 * 1.5);
+    }
+}
