@@ -280,37 +280,55 @@ fn faces(a: FacesArgs) -> ExitCode {
         Ok(s) => s,
         Err(code) => return code,
     };
-    let prepared = crate::pipeline::prepare(&scene, crate::domain::DomainMode::Extended);
-    let doc = crate::output::faces_json(&prepared.faces, &prepared.surfaces);
-    if a.json {
-        println!("{doc}");
-    } else {
-        println!(
-            "{} triangles in, {} degenerate dropped, {} faces out",
-            prepared.faces.triangles_in,
-            prepared.faces.degenerate_dropped,
-            prepared.faces.faces.len()
-        );
-        for f in &prepared.faces.faces {
-            let fill = prepared
-                .surfaces
-                .iter()
-                .find(|s| s.face == f.id)
-                .map_or(0.0, |s| s.fill_ratio());
-            println!(
-                "face {:>6}  material {:>3}  {:<13} area {:.6} m2  fill {:.3}  holes {}  vertices {}  triangles {}",
-                f.id.0,
-                f.material,
-                f.kind.as_str(),
-                f.area_m2,
-                fill,
-                f.holes.len(),
-                f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
-                prepared.faces.source_triangle_count(f)
-            );
-        }
+    // Faces and their domains only: no visibility structure is needed to list them.
+    let faces = crate::faces::merge_planar_faces(&scene);
+    let domains =
+        crate::domain::build_domains(&scene, &faces, crate::domain::DomainMode::Extended);
+    match print_faces(&faces, &domains.surfaces, a.json) {
+        Ok(()) => ExitCode::SUCCESS,
+        // The reader went away (`wavrad faces ... | head`): not an error of ours.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(e) => internal(format!("cannot write to standard output: {e}")),
     }
-    ExitCode::SUCCESS
+}
+
+fn print_faces(
+    faces: &crate::faces::FaceSet,
+    surfaces: &[crate::domain::Surface],
+    json: bool,
+) -> std::io::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    if json {
+        writeln!(out, "{}", crate::output::faces_json(faces, surfaces))?;
+        return out.flush();
+    }
+    writeln!(
+        out,
+        "{} triangles in, {} degenerate dropped, {} faces out",
+        faces.triangles_in,
+        faces.degenerate_dropped,
+        faces.faces.len()
+    )?;
+    for f in &faces.faces {
+        let fill = surfaces
+            .iter()
+            .find(|s| s.face == f.id)
+            .map_or(0.0, |s| s.fill_ratio());
+        writeln!(
+            out,
+            "face {:>6}  material {:>3}  {:<13} area {:.6} m2  fill {:.3}  holes {}  vertices {}  triangles {}",
+            f.id.0,
+            f.material,
+            f.kind.as_str(),
+            f.area_m2,
+            fill,
+            f.holes.len(),
+            f.outer.len() + f.holes.iter().map(Vec::len).sum::<usize>(),
+            faces.source_triangle_count(f)
+        )?;
+    }
+    out.flush()
 }
 
 fn serve(a: ServeArgs) -> ExitCode {
