@@ -282,8 +282,7 @@ fn faces(a: FacesArgs) -> ExitCode {
     };
     // Faces and their domains only: no visibility structure is needed to list them.
     let faces = crate::faces::merge_planar_faces(&scene);
-    let domains =
-        crate::domain::build_domains(&scene, &faces, crate::domain::DomainMode::Extended);
+    let domains = crate::domain::build_domains(&scene, &faces, crate::domain::DomainMode::Extended);
     match print_faces(&faces, &domains.surfaces, a.json) {
         Ok(()) => ExitCode::SUCCESS,
         // The reader went away (`wavrad faces ... | head`): not an error of ours.

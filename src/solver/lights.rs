@@ -12,7 +12,10 @@
 use super::basis::MAX_FUNCTIONS;
 use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
-use super::{corner_probe_points, mean_rgb_sum, Bases, Patch, Quantity, Rules, MAX_DEPTH};
+use super::{
+    corner_probe_points, gather, mean_rgb_sum, weighted_deviation, Bases, Patch, Quantity, Rules,
+    MAX_DEPTH,
+};
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
 use glam::DVec3;
@@ -134,15 +137,9 @@ impl LightShot<'_> {
             }
         }
         // Oracle: as for element transfers (see `ShotContext::transfer`).
-        let mut err: f64 = 0.0;
-        for k in 0..rrule.len() {
-            let mut e = 0.0;
-            for ch in 0..3 {
-                let proj: f64 = (0..nr).map(|a| dh[a][ch] * psi[k][a]).sum();
-                e += weight[ch] * (e_k[k][ch] - proj).abs();
-            }
-            err = err.max(e);
-        }
+        let mut err = (0..rrule.len())
+            .map(|k| weighted_deviation(e_k[k], &dh, &psi[k], nr, weight))
+            .fold(0.0, f64::max);
         let mut partial = any_visible && any_blocked;
         if !partial && any_visible && err * rp.area <= self.threshold {
             // Near the element's corners, which the interior quadrature points do not sample.
@@ -151,12 +148,7 @@ impl LightShot<'_> {
                 let (e, _) =
                     unoccluded_irradiance(self.light, rp.point(st), rroot.normal, self.far);
                 rbasis.eval(st, &mut phi);
-                let mut d = 0.0;
-                for ch in 0..3 {
-                    let proj: f64 = (0..nr).map(|a| dh[a][ch] * phi[a]).sum();
-                    d += weight[ch] * (e[ch] - proj).abs();
-                }
-                err = err.max(d);
+                err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
             }
         }
         if !partial && err * rp.area <= self.threshold && unoccluded_max * rp.area > self.threshold
@@ -181,12 +173,7 @@ impl LightShot<'_> {
             self.capped.fetch_add(1, Ordering::Relaxed);
         }
         self.links.fetch_add(1, Ordering::Relaxed);
-        for a in 0..nr {
-            for ch in 0..3 {
-                rcv.dh[b * nr + a][ch] += dh[a][ch];
-            }
-        }
-        rcv.touched = true;
+        gather(rcv, b, &dh[..nr]);
     }
 
     /// Do shadow rays from points near the receiver's corners disagree with the quadrature rays?

@@ -373,18 +373,9 @@ impl ShotContext<'_> {
 
         // Oracle: received irradiance at the control points against its projection.
         let weight = oracle_weight;
-        let mut err: f64 = 0.0;
-        for k in 0..rrule.len() {
-            let mut e = 0.0;
-            for ch in 0..3 {
-                let mut proj = 0.0;
-                for a in 0..nr {
-                    proj += dh[a][ch] * psi[k][a];
-                }
-                e += weight[ch] * (e_k[k][ch] - proj).abs();
-            }
-            err = err.max(e);
-        }
+        let mut err = (0..rrule.len())
+            .map(|k| weighted_deviation(e_k[k], &dh, &psi[k], nr, weight))
+            .fold(0.0, f64::max);
         // A shadow boundary crossing the link: the control points cannot see where it runs, so the
         // whole unoccluded transfer is at stake.
         let mut partial = any_visible && any_blocked;
@@ -398,12 +389,8 @@ impl ShotContext<'_> {
                 let x = rp.point(st);
                 let f = kernel::point_polygon_form_factor(x, rroot.normal, &polygon);
                 rbasis.eval(st, &mut phi);
-                let mut e = 0.0;
-                for ch in 0..3 {
-                    let proj: f64 = (0..nr).map(|a| dh[a][ch] * phi[a]).sum();
-                    e += weight[ch] * (f * src.coeffs[0][ch] - proj).abs();
-                }
-                err = err.max(e);
+                let e = src.coeffs[0].map(|c| f * c);
+                err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
             }
         }
         if !partial && err * rp.area <= threshold && unoccluded_max * rp.area > threshold {
@@ -447,13 +434,36 @@ impl ShotContext<'_> {
             self.capped.fetch_add(1, Ordering::Relaxed);
         }
         self.links.fetch_add(1, Ordering::Relaxed);
-        for a in 0..nr {
-            for ch in 0..3 {
-                rcv.dh[b * nr + a][ch] += dh[a][ch];
-            }
-        }
-        rcv.touched = true;
+        gather(rcv, b, &dh[..nr]);
     }
+}
+
+/// `sum_ch weight_ch |e_ch - projection_ch|` at a point where the receiver's basis functions take
+/// the values `phi`: the oracle's measure of a projection's error there.
+fn weighted_deviation(
+    e: Rgb,
+    dh: &[Rgb; MAX_FUNCTIONS],
+    phi: &[f64; MAX_FUNCTIONS],
+    nr: usize,
+    weight: Rgb,
+) -> f64 {
+    (0..3)
+        .map(|ch| {
+            let proj: f64 = (0..nr).map(|a| dh[a][ch] * phi[a]).sum();
+            weight[ch] * (e[ch] - proj).abs()
+        })
+        .sum()
+}
+
+/// Adds an accepted link's coefficients to node `b`'s gathered irradiance.
+fn gather(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+    let nr = dh.len();
+    for (a, d) in dh.iter().enumerate() {
+        for ch in 0..3 {
+            rcv.dh[b * nr + a][ch] += d[ch];
+        }
+    }
+    rcv.touched = true;
 }
 
 /// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.
