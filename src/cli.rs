@@ -323,7 +323,17 @@ fn serve(a: ServeArgs) -> ExitCode {
         Ok(r) => r,
         Err(e) => return internal(format!("cannot start the async runtime: {e}")),
     };
-    match runtime.block_on(crate::service::serve(config, a.addr)) {
+    let serve = async {
+        let server = crate::service::Server::bind(config, a.addr).await?;
+        // The bound address on stdout (machine output): with `--addr 127.0.0.1:0` this is how a
+        // script or a test learns the port.
+        println!(
+            "{}",
+            serde_json::json!({"listening": server.local_addr().to_string()})
+        );
+        server.run().await
+    };
+    match runtime.block_on(serve) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => bad_input(e),
         Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {

@@ -16,6 +16,7 @@
 pub mod error;
 pub mod extract;
 pub mod jobs;
+pub mod recovery;
 pub mod routes;
 pub mod runner;
 pub mod store;
@@ -143,11 +144,13 @@ impl AppState {
             ));
         }
         let store = FileStore::open(&config.data_dir)?;
+        let jobs = JobBoard::new(config.max_queued);
+        recovery::recover(&store, &jobs)?;
         let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
         let state = AppState {
             inner: Arc::new(Shared {
-                jobs: JobBoard::new(config.max_queued),
+                jobs,
                 config,
                 store,
                 upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),

@@ -90,7 +90,13 @@ pub async fn create_job(
     let store = state.store().clone();
     let stored = job.clone();
     tokio::task::spawn_blocking(move || {
-        let written = store.write_new_job(&stored.id, &body, &stored.params, &stored.record());
+        let written = store.write_new_job(
+            &stored.id,
+            &body,
+            &Default::default(),
+            &stored.params,
+            &stored.record(),
+        );
         if written.is_err() {
             store.discard(&stored.id);
         }
