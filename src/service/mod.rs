@@ -28,10 +28,10 @@ pub use store::{FileStore, JobId};
 
 use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::handler::Handler;
-use axum::http::StatusCode;
+use axum::http::{Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{delete, get, post, MethodRouter};
 use axum::Router;
 use std::future::Future;
 use std::io;
@@ -186,23 +186,99 @@ impl std::fmt::Debug for AppState {
     }
 }
 
-/// The service's router: every route of CONTRACT "HTTP API (v1)" built so far, with limits,
-/// timeouts, panic catching and tracing.
+/// One route of the router: path (axum syntax, which is also OpenAPI's), method, the paths of
+/// `api/openapi.yaml` it answers (a catch-all route answers several), and its handler.
+pub struct ApiRoute {
+    pub path: &'static str,
+    pub method: Method,
+    pub documented: &'static [&'static str],
+    pub handler: MethodRouter<AppState>,
+}
+
+/// Every route the service answers. [`app`] is built from this table, and a test checks it
+/// against the OpenAPI document both ways.
+pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
+    fn route(
+        path: &'static str,
+        method: Method,
+        documented: &'static [&'static str],
+        handler: MethodRouter<AppState>,
+    ) -> ApiRoute {
+        ApiRoute {
+            path,
+            method,
+            documented,
+            handler,
+        }
+    }
+    vec![
+        route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
+        route(
+            "/v1/openapi.json",
+            Method::GET,
+            &["/v1/openapi.json"],
+            get(routes::openapi),
+        ),
+        route(
+            "/v1/jobs",
+            Method::GET,
+            &["/v1/jobs"],
+            get(routes::list_jobs),
+        ),
+        route(
+            "/v1/jobs",
+            Method::POST,
+            &["/v1/jobs"],
+            post(routes::create_job.layer(DefaultBodyLimit::max(max_body))),
+        ),
+        route(
+            "/v1/jobs/{id}",
+            Method::GET,
+            &["/v1/jobs/{id}"],
+            get(routes::get_job),
+        ),
+        route(
+            "/v1/jobs/{id}",
+            Method::DELETE,
+            &["/v1/jobs/{id}"],
+            delete(routes::delete_job),
+        ),
+        route(
+            "/v1/jobs/{id}/result",
+            Method::GET,
+            &["/v1/jobs/{id}/result"],
+            get(routes::get_result),
+        ),
+        route(
+            "/v1/jobs/{id}/convergence",
+            Method::GET,
+            &["/v1/jobs/{id}/convergence"],
+            get(routes::get_convergence),
+        ),
+        route(
+            "/v1/jobs/{id}/{file}",
+            Method::GET,
+            &[
+                "/v1/jobs/{id}/lightmap.exr",
+                "/v1/jobs/{id}/lightmap-{n}.exr",
+                "/v1/jobs/{id}/preview.png",
+                "/v1/jobs/{id}/scene.glb",
+            ],
+            get(routes::get_file),
+        ),
+    ]
+}
+
+/// The service's router: every route of [`api_routes`] with limits, timeouts, panic catching and
+/// tracing.
 pub fn app(state: AppState) -> Router {
     let max_body = state.config().max_body_bytes;
-    Router::new()
-        .route("/healthz", get(routes::healthz))
-        .route(
-            "/v1/jobs",
-            get(routes::list_jobs).post(routes::create_job.layer(DefaultBodyLimit::max(max_body))),
-        )
-        .route(
-            "/v1/jobs/{id}",
-            get(routes::get_job).delete(routes::delete_job),
-        )
-        .route("/v1/jobs/{id}/result", get(routes::get_result))
-        .route("/v1/jobs/{id}/convergence", get(routes::get_convergence))
-        .route("/v1/jobs/{id}/{file}", get(routes::get_file))
+    let mut router = Router::new();
+    for r in api_routes(max_body) {
+        // Routes on one path merge their methods.
+        router = router.route(r.path, r.handler);
+    }
+    router
         .fallback(error::route_not_found)
         .method_not_allowed_fallback(error::method_not_allowed)
         // Innermost first: the timeout's empty 408 and every other non-JSON error pass through the

@@ -26,6 +26,25 @@ const ACCEPTED_SCENE_TYPES: [&str; 4] = [
     "application/json",
 ];
 
+/// The OpenAPI document, embedded at build time.
+pub const OPENAPI_YAML: &str = include_str!("../../api/openapi.yaml");
+
+/// The OpenAPI document as JSON (parsed once).
+pub fn openapi_document() -> Result<&'static serde_json::Value, &'static str> {
+    static DOC: std::sync::LazyLock<Result<serde_json::Value, String>> =
+        std::sync::LazyLock::new(|| {
+            serde_norway::from_str(OPENAPI_YAML).map_err(|e| e.to_string())
+        });
+    DOC.as_ref().map_err(String::as_str)
+}
+
+/// `GET /v1/openapi.json`: `api/openapi.yaml` as JSON.
+pub async fn openapi() -> Result<Json<&'static serde_json::Value>, ApiError> {
+    openapi_document()
+        .map(Json)
+        .map_err(|e| ApiError::internal("the embedded OpenAPI document does not parse", e))
+}
+
 /// `GET /healthz`.
 pub async fn healthz() -> Json<serde_json::Value> {
     Json(serde_json::json!({"status": "ok"}))
@@ -392,6 +411,13 @@ fn file_response(bytes: Vec<u8>, content_type: &'static str) -> Response {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_openapi_document_parses() {
+        let doc = openapi_document().unwrap();
+        assert_eq!(doc["openapi"], "3.1.0");
+        assert!(doc["paths"]["/v1/jobs"]["post"]["responses"]["202"].is_object());
+    }
 
     #[test]
     fn output_file_names() {
