@@ -143,6 +143,18 @@ pub struct ServeArgs {
     /// Largest scene; beyond it 422.
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
     pub max_triangles: usize,
+    /// Largest estimated solver memory of one job (bytes); beyond it 422.
+    #[arg(long, env = "WAVRAD_MAX_MEMORY_BYTES", default_value_t = crate::service::DEFAULT_MAX_MEMORY_BYTES)]
+    pub max_memory_bytes: u64,
+    /// Longest solve of one job (seconds): caps every job's max_seconds. Default: no cap.
+    #[arg(long, env = "WAVRAD_MAX_JOB_SECONDS")]
+    pub max_job_seconds: Option<u64>,
+    /// Finished jobs kept; beyond N the oldest are deleted with their files. Default: all.
+    #[arg(long, env = "WAVRAD_RETAIN_JOBS")]
+    pub retain_jobs: Option<usize>,
+    /// Bearer token every /v1 route then requires (/healthz and /metrics stay open).
+    #[arg(long, env = "WAVRAD_API_TOKEN", hide_env_values = true)]
+    pub api_token: Option<String>,
 }
 
 fn init_logging(format: &str) {
@@ -313,6 +325,10 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.max_queued = a.max_queued;
     config.max_body_bytes = a.max_body_bytes;
     config.max_triangles = a.max_triangles;
+    config.max_memory_bytes = a.max_memory_bytes;
+    config.max_job_seconds = a.max_job_seconds;
+    config.retain_jobs = a.retain_jobs;
+    config.api_token = a.api_token;
     if let Err(e) = config.validate() {
         return bad_input(e);
     }

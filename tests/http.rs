@@ -759,3 +759,172 @@ async fn openapi_describes_exactly_the_routes() {
         );
     }
 }
+
+/// A room lit from its -x wall holding a `k x k` grid of small double-sided cubes at jittered
+/// heights: thousands of non-coplanar faces, so one shot of order 3 takes long.
+fn cluttered_scene(k: u32) -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let wall = b.material([0.8; 3], [0.0; 3], false);
+    let lamp = b.material([0.8; 3], [1.0; 3], false);
+    let block = b.material([0.7; 3], [0.0; 3], true);
+    let size = 10.0;
+    b.inward_box(
+        [lamp, wall, wall, wall, wall, wall],
+        DVec3::ZERO,
+        DVec3::splat(size),
+        1,
+    );
+    let step = size / f64::from(k + 1);
+    for i in 0..k {
+        for j in 0..k {
+            let h = 0.5 + 0.37 * f64::from((i * 7 + j * 13) % 11);
+            let min = DVec3::new(step * f64::from(i + 1), step * f64::from(j + 1), h);
+            let s = step * 0.4;
+            let (x, y, z) = (DVec3::X * s, DVec3::Y * s, DVec3::Z * s);
+            b.quad(block, min, y, z, 1);
+            b.quad(block, min + x, y, z, 1);
+            b.quad(block, min, z, x, 1);
+            b.quad(block, min + y, z, x, 1);
+            b.quad(block, min, x, y, 1);
+            b.quad(block, min + z, x, y, 1);
+        }
+    }
+    b.to_glb()
+}
+
+/// Every limit is a named setting, and a refusal names it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn limits_are_named_settings_and_refusals_name_them() {
+    let mut config = ServiceConfig::new(data_dir("limits"));
+    config.max_memory_bytes = 10_000;
+    let base = start(config).await;
+    let client = client();
+    let response = submit(
+        &client,
+        &base,
+        "order=3",
+        "model/gltf-binary",
+        small_scene(0.5),
+    )
+    .await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(error["code"], "memory_limit");
+    let message = error["message"].as_str().unwrap();
+    assert!(message.contains("--max-memory-bytes"), "{message}");
+    assert!(message.contains("10000 bytes"), "{message}");
+
+    let mut config = ServiceConfig::new(data_dir("limits-seconds"));
+    config.max_job_seconds = Some(1);
+    let base = start(config).await;
+    // A job asking for more is capped; one asking for nothing gets the cap.
+    let capped = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=30",
+        never_converging_scene(),
+    )
+    .await;
+    assert_eq!(capped["params"]["max_seconds"], 1.0);
+    let id = capped["id"].as_str().unwrap();
+    let started = Instant::now();
+    let done = wait_for(&client, &base, id, "succeeded", Duration::from_secs(30)).await;
+    assert_eq!(done["stop_reason"], "time_budget");
+    assert!(started.elapsed() < Duration::from_secs(20));
+    let free = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    assert_eq!(free["params"]["max_seconds"], 1.0);
+    let shorter = submit_ok(&client, &base, "order=1&max_seconds=0.5", small_scene(0.5)).await;
+    assert_eq!(shorter["params"]["max_seconds"], 0.5);
+}
+
+/// DELETE of a running job on a large scene: `cancelled` within 2 s even mid-shot.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_running_job_on_a_large_scene_is_cancelled_within_two_seconds() {
+    let base = start(ServiceConfig::new(data_dir("cancel-large"))).await;
+    let client = client();
+    let job = submit_ok(
+        &client,
+        &base,
+        "order=3&tolerance=1e-6&target_unshot=1e-6&max_seconds=120",
+        cluttered_scene(24),
+    )
+    .await;
+    let id = job["id"].as_str().unwrap().to_string();
+    wait_for(&client, &base, &id, "running", Duration::from_secs(60)).await;
+    // Into the first shot (the emitter's direct shot over ~14 000 faces, longer than 2 s here).
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let before = get_job(&client, &base, &id).await;
+    println!("before cancel: {}", before["progress"]);
+    assert_eq!(
+        before["progress"]["iterations"], 0,
+        "the cancel must arrive during the first shot"
+    );
+    let response = client
+        .delete(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let asked = Instant::now();
+    let end = wait_for(&client, &base, &id, "cancelled", Duration::from_secs(10)).await;
+    let latency = asked.elapsed();
+    println!("cancelled after {latency:?}: {}", end["progress"]);
+    assert!(latency < Duration::from_secs(2), "took {latency:?}");
+    assert_eq!(end["stop_reason"], "cancelled");
+}
+
+/// A finished job deleted goes with its files; `--retain-jobs` deletes the oldest beyond N.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deleting_and_retention_remove_files() {
+    let dir = data_dir("retain");
+    let mut config = ServiceConfig::new(&dir);
+    config.retain_jobs = Some(2);
+    let base = start(config).await;
+    let client = client();
+    let mut ids = Vec::new();
+    for _ in 0..3 {
+        let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+        let id = job["id"].as_str().unwrap().to_string();
+        wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+        ids.push(id);
+    }
+    let jobs = dir.join("jobs");
+    // Retention runs just after the third job ends: the first goes, files and all.
+    let waited = Instant::now();
+    loop {
+        let first = client
+            .get(format!("{base}/v1/jobs/{}", ids[0]))
+            .send()
+            .await
+            .unwrap();
+        if first.status() == StatusCode::NOT_FOUND {
+            error_of(first, StatusCode::NOT_FOUND).await;
+            break;
+        }
+        assert!(
+            waited.elapsed() < Duration::from_secs(5),
+            "the oldest job stays"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(!jobs.join(&ids[0]).exists());
+    assert!(jobs.join(&ids[1]).join("result.json").is_file());
+
+    let response = client
+        .delete(format!("{base}/v1/jobs/{}", ids[1]))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NO_CONTENT);
+    assert!(!jobs.join(&ids[1]).exists(), "deleted with its files");
+    let again = client
+        .delete(format!("{base}/v1/jobs/{}", ids[1]))
+        .send()
+        .await
+        .unwrap();
+    error_of(again, StatusCode::NOT_FOUND).await;
+    assert!(jobs.join(&ids[2]).join("lightmap.exr").is_file());
+    assert!(std::fs::read_dir(dir.join("trash"))
+        .unwrap()
+        .next()
+        .is_none());
+}

@@ -56,6 +56,10 @@ pub const DEFAULT_MAX_BODY_BYTES: usize = 256 << 20;
 /// Five million triangles keep a solve's memory and time within one machine's reach.
 pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 
+/// 16 GiB: the estimated solver memory of one job (see [`crate::job::estimated_memory_bytes`])
+/// beyond which a submission is refused with 422.
+pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
+
 /// Seconds a client is told to wait (`Retry-After`) when the queue or the server is full.
 pub const RETRY_AFTER_SECONDS: u64 = 10;
 /// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
@@ -66,7 +70,7 @@ pub const MAX_IN_FLIGHT_REQUESTS: usize = 1024;
 pub const MAX_CONCURRENT_UPLOADS: usize = 4;
 
 /// Settings of the service (CONTRACT `wavrad serve` options).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Clone, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct ServiceConfig {
     /// Root of the job store (`data_dir/jobs/{id}/`).
@@ -79,6 +83,31 @@ pub struct ServiceConfig {
     pub max_body_bytes: usize,
     /// Largest scene, in triangles; larger is refused with 422.
     pub max_triangles: usize,
+    /// Largest estimated solver memory of one job, in bytes; larger is refused with 422.
+    pub max_memory_bytes: u64,
+    /// Longest solve, in seconds: a job's `max_seconds` is capped to it (and set to it when the
+    /// job gives none). None: no cap.
+    pub max_job_seconds: Option<u64>,
+    /// Finished jobs kept; beyond it the oldest are deleted with their files. None: all kept.
+    pub retain_jobs: Option<usize>,
+    /// When set, every `/v1` route needs `Authorization: Bearer <token>` (401 otherwise).
+    pub api_token: Option<String>,
+}
+
+impl std::fmt::Debug for ServiceConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ServiceConfig")
+            .field("data_dir", &self.data_dir)
+            .field("workers", &self.workers)
+            .field("max_queued", &self.max_queued)
+            .field("max_body_bytes", &self.max_body_bytes)
+            .field("max_triangles", &self.max_triangles)
+            .field("max_memory_bytes", &self.max_memory_bytes)
+            .field("max_job_seconds", &self.max_job_seconds)
+            .field("retain_jobs", &self.retain_jobs)
+            .field("api_token", &self.api_token.as_ref().map(|_| "<set>"))
+            .finish()
+    }
 }
 
 impl ServiceConfig {
@@ -90,6 +119,10 @@ impl ServiceConfig {
             max_queued: DEFAULT_MAX_QUEUED,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             max_triangles: DEFAULT_MAX_TRIANGLES,
+            max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
+            max_job_seconds: None,
+            retain_jobs: None,
+            api_token: None,
         }
     }
 
@@ -106,6 +139,23 @@ impl ServiceConfig {
         }
         if self.max_triangles == 0 {
             return Err("--max-triangles must be at least 1".into());
+        }
+        if self.max_memory_bytes == 0 {
+            return Err("--max-memory-bytes must be at least 1".into());
+        }
+        if self.max_job_seconds == Some(0) {
+            return Err("--max-job-seconds must be at least 1".into());
+        }
+        if self
+            .api_token
+            .as_deref()
+            .is_some_and(|t| t.is_empty() || !t.bytes().all(|c| c.is_ascii_graphic()))
+        {
+            return Err(
+                "--api-token must be non-empty printable ASCII without spaces (it is sent in an \
+                 HTTP header)"
+                    .into(),
+            );
         }
         Ok(())
     }
@@ -157,6 +207,7 @@ impl AppState {
                 in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
             }),
         };
+        runner::enforce_retention(&state);
         runner::spawn_runners(&state, pool, workers);
         Ok(state)
     }

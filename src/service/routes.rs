@@ -5,7 +5,7 @@ use super::extract::{ApiPath, ApiQuery};
 use super::jobs::{Job, JobState, JobView};
 use super::store::{CONVERGENCE_FILE, RESULT_FILE};
 use super::{AppState, RETRY_AFTER_SECONDS};
-use crate::job::JobParams;
+use crate::job::{estimated_memory_bytes, JobParams};
 use crate::output::page_file_name;
 use crate::pipeline::check_solvable;
 use crate::scene::{load_scene, ExternalFiles};
@@ -53,10 +53,14 @@ pub async fn healthz() -> Json<serde_json::Value> {
 /// `POST /v1/jobs`: validate parameters and scene, store the job, queue it; 202 with the job.
 pub async fn create_job(
     State(state): State<AppState>,
-    ApiQuery(params): ApiQuery<JobParams>,
+    ApiQuery(mut params): ApiQuery<JobParams>,
     request: Request,
 ) -> Result<Response, ApiError> {
     params.validate().map_err(ApiError::bad_parameters)?;
+    if let Some(cap) = state.config().max_job_seconds {
+        let cap = cap as f64;
+        params.max_seconds = Some(params.max_seconds.map_or(cap, |s| s.min(cap)));
+    }
     check_content_type(request.headers())?;
     let max_body = state.config().max_body_bytes;
     if let Some(length) = content_length(request.headers()) {
@@ -91,10 +95,13 @@ pub async fn create_job(
     };
 
     let max_triangles = state.config().max_triangles;
+    let max_memory = state.config().max_memory_bytes;
+    let order = params.order;
     let checked = body.clone();
     tokio::task::spawn_blocking(move || {
         let scene = load_scene(&checked, &ExternalFiles::Refuse, max_triangles)?;
-        check_solvable(&scene)
+        check_solvable(&scene)?;
+        check_memory(scene.triangles.len(), order, max_memory)
     })
     .await
     .map_err(|e| ApiError::internal("the scene check failed", e))??;
@@ -137,6 +144,23 @@ pub async fn create_job(
         response.headers_mut().insert(header::LOCATION, location);
     }
     Ok(response)
+}
+
+/// 422 when the solve's estimated memory exceeds `--max-memory-bytes`.
+fn check_memory(triangles: usize, order: usize, max_memory: u64) -> Result<(), ApiError> {
+    let estimate = estimated_memory_bytes(triangles, order);
+    if estimate <= max_memory {
+        return Ok(());
+    }
+    Err(ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "memory_limit",
+        format!(
+            "solving {triangles} triangles at order {order} needs an estimated {estimate} bytes, \
+             more than this server allows per job ({max_memory} bytes, --max-memory-bytes); use a \
+             lower order, simplify the scene, or ask the operator to raise the limit"
+        ),
+    ))
 }
 
 fn check_content_type(headers: &HeaderMap) -> Result<(), ApiError> {

@@ -139,6 +139,25 @@ fn process(state: &AppState, job: &Arc<Job>) {
     });
     job.persist(store);
     tracing::info!(state = job.state().as_str(), "job finished");
+    enforce_retention(state);
+}
+
+/// `--retain-jobs N`: deletes the oldest finished jobs, with their files, beyond N (blocking).
+pub(crate) fn enforce_retention(state: &AppState) {
+    let Some(keep) = state.config().retain_jobs else {
+        return;
+    };
+    let finished = state.jobs().finished_oldest_first();
+    let excess = finished.len().saturating_sub(keep);
+    for job in finished.into_iter().take(excess) {
+        match state.store().delete_job(&job.id) {
+            Ok(()) => {
+                state.jobs().forget(job.id.as_str());
+                tracing::info!(job = %job.id, "deleted by --retain-jobs");
+            }
+            Err(e) => tracing::error!(job = %job.id, error = %e, "could not delete an old job"),
+        }
+    }
 }
 
 enum Finished {
