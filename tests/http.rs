@@ -928,3 +928,160 @@ async fn deleting_and_retention_remove_files() {
         .next()
         .is_none());
 }
+
+/// A `multipart/form-data` body from (name, file name, content type, bytes) parts.
+fn multipart(parts: &[(&str, &str, &str, &[u8])]) -> (String, Vec<u8>) {
+    let boundary = "wavrad-test-boundary-7d1f";
+    let mut body = Vec::new();
+    for (name, file, content_type, bytes) in parts {
+        body.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"; \
+                 filename=\"{file}\"\r\nContent-Type: {content_type}\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    (format!("multipart/form-data; boundary={boundary}"), body)
+}
+
+/// A .gltf with an external buffer is solved when the buffer is uploaded as a part named by its
+/// URI; without it, or without a `scene` part, the upload is refused with what to fix.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_multipart_upload_resolves_external_files_by_name() {
+    let base = start(ServiceConfig::new(data_dir("multipart"))).await;
+    let client = client();
+    let (mut root, bin) = one_triangle_gltf(TRIANGLE, [0, 1, 2]);
+    root["buffers"][0]["uri"] = json!("geometry/tri.bin");
+    let gltf = serde_json::to_vec(&root).unwrap();
+
+    let (content_type, body) = multipart(&[
+        ("scene", "tri.gltf", "model/gltf+json", &gltf),
+        (
+            "geometry/tri.bin",
+            "tri.bin",
+            "application/octet-stream",
+            &bin,
+        ),
+    ]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let job: Value = response.json().await.unwrap();
+    let id = job["id"].as_str().unwrap();
+    let done = wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    assert_eq!(done["state"], "succeeded");
+
+    let (content_type, body) = multipart(&[("scene", "tri.gltf", "model/gltf+json", &gltf)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert!(
+        error["message"]
+            .as_str()
+            .unwrap()
+            .contains("geometry/tri.bin"),
+        "{error}"
+    );
+
+    let (content_type, body) =
+        multipart(&[("tri.bin", "tri.bin", "application/octet-stream", &bin)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    assert_eq!(error["code"], "bad_multipart");
+    assert!(error["message"].as_str().unwrap().contains("'scene'"));
+}
+
+/// A retried POST with the same `Idempotency-Key` gets the job the first one created, also when
+/// the retries race; a malformed key is a 400.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idempotency_key_returns_the_job_it_created() {
+    let base = start(ServiceConfig::new(data_dir("idempotency"))).await;
+    let client = client();
+    let post = |key: &'static str| {
+        client
+            .post(format!("{base}/v1/jobs?order=1"))
+            .header("content-type", "model/gltf-binary")
+            .header("idempotency-key", key)
+            .body(small_scene(0.5))
+            .send()
+    };
+    let first = post("build-42").await.unwrap();
+    assert_eq!(first.status(), StatusCode::ACCEPTED);
+    assert!(first.headers().get("idempotent-replayed").is_none());
+    let first: Value = first.json().await.unwrap();
+    let again = post("build-42").await.unwrap();
+    assert_eq!(again.status(), StatusCode::ACCEPTED);
+    assert_eq!(again.headers()["idempotent-replayed"], "true");
+    let again: Value = again.json().await.unwrap();
+    assert_eq!(again["id"], first["id"]);
+
+    // Two retries in flight at once still make one job.
+    let (a, b) = tokio::join!(post("build-43"), post("build-43"));
+    let a: Value = a.unwrap().json().await.unwrap();
+    let b: Value = b.unwrap().json().await.unwrap();
+    assert_eq!(a["id"], b["id"]);
+    assert_ne!(a["id"], first["id"]);
+
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 2);
+
+    let bad = client
+        .post(format!("{base}/v1/jobs?order=1"))
+        .header("content-type", "model/gltf-binary")
+        .header("idempotency-key", "x".repeat(300))
+        .body(small_scene(0.5))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        error_of(bad, StatusCode::BAD_REQUEST).await["code"],
+        "bad_idempotency_key"
+    );
+}
+
+/// While a converging solve runs, its progress carries an ETA fitted on the unshot decay.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_running_job_reports_an_eta() {
+    let base = start(ServiceConfig::new(data_dir("eta"))).await;
+    let client = client();
+    let job = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-3",
+        cluttered_scene(5),
+    )
+    .await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let start = Instant::now();
+    let mut seen = None;
+    loop {
+        let j = get_job(&client, &base, &id).await;
+        let p = &j["progress"];
+        if j["state"] == "running" && p["iterations"].as_u64().unwrap() >= 4 {
+            if let Some(eta) = p["eta_seconds"].as_f64() {
+                seen = Some((eta, p.clone()));
+                break;
+            }
+        }
+        if j["state"] != "running" && j["state"] != "queued" {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60));
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let (eta, progress) = seen.expect("an ETA while running");
+    println!("eta {eta} s at {progress}");
+    assert!(eta.is_finite() && eta >= 0.0);
+    let done = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(120)).await;
+    println!("finished at {}", done["progress"]);
+    assert!(done["progress"]["eta_seconds"].is_null() || done["progress"]["eta_seconds"] == 0.0);
+}

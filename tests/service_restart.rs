@@ -89,13 +89,23 @@ fn box_scene(rho: f64, n: u32) -> Vec<u8> {
 }
 
 async fn submit(client: &Client, base: &str, query: &str, glb: Vec<u8>) -> String {
-    let r = client
+    submit_keyed(client, base, query, glb, None).await
+}
+
+async fn submit_keyed(
+    client: &Client,
+    base: &str,
+    query: &str,
+    glb: Vec<u8>,
+    key: Option<&str>,
+) -> String {
+    let mut request = client
         .post(format!("{base}/v1/jobs?{query}"))
-        .header("content-type", "model/gltf-binary")
-        .body(glb)
-        .send()
-        .await
-        .unwrap();
+        .header("content-type", "model/gltf-binary");
+    if let Some(key) = key {
+        request = request.header("idempotency-key", key);
+    }
+    let r = request.body(glb).send().await.unwrap();
     assert_eq!(r.status(), StatusCode::ACCEPTED);
     let job: Value = r.json().await.unwrap();
     job["id"].as_str().unwrap().to_string()
@@ -201,7 +211,7 @@ async fn finished_results_survive_a_restart() {
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+    let id = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
     let before = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
         j["state"] == "succeeded"
     })
@@ -231,5 +241,8 @@ async fn finished_results_survive_a_restart() {
         .await
         .unwrap();
     assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
+    // The idempotency key survived too: a retry gets the same job.
+    let retried = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
+    assert_eq!(retried, id);
     drop(service);
 }

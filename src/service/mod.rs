@@ -179,6 +179,8 @@ struct Shared {
     jobs: JobBoard,
     upload_permits: Semaphore,
     in_flight: Arc<Semaphore>,
+    /// Held while a POST with an `Idempotency-Key` stores its job.
+    keyed_submissions: tokio::sync::Mutex<()>,
 }
 
 impl AppState {
@@ -205,6 +207,7 @@ impl AppState {
                 store,
                 upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
                 in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
+                keyed_submissions: tokio::sync::Mutex::new(()),
             }),
         };
         runner::enforce_retention(&state);
@@ -222,6 +225,10 @@ impl AppState {
 
     pub fn jobs(&self) -> &JobBoard {
         &self.inner.jobs
+    }
+
+    pub(crate) fn keyed_submissions(&self) -> &tokio::sync::Mutex<()> {
+        &self.inner.keyed_submissions
     }
 
     pub(crate) fn upload_permits(&self) -> &Semaphore {

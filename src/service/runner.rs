@@ -190,7 +190,14 @@ fn solve(state: &AppState, job: &Job, max_triangles: usize) -> Result<JobOutcome
     let store = state.store();
     let path = store.scene_path(&job.id)?;
     let bytes = std::fs::read(&path)?;
-    let scene = load_scene(&bytes, &ExternalFiles::Refuse, max_triangles)?;
+    let parts = store.read_parts(&job.id)?;
+    let external = if parts.is_empty() {
+        ExternalFiles::Refuse
+    } else {
+        ExternalFiles::Named(parts)
+    };
+    let scene = load_scene(&bytes, &external, max_triangles)?;
+    drop(external);
     drop(bytes);
     let dir = store.job_dir(&job.id);
     run_job(&scene, &job.params, &dir, job.cancel_flag(), &mut |p| {
