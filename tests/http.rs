@@ -1085,3 +1085,189 @@ async fn a_running_job_reports_an_eta() {
     println!("finished at {}", done["progress"]);
     assert!(done["progress"]["eta_seconds"].is_null() || done["progress"]["eta_seconds"] == 0.0);
 }
+
+/// Reads server-sent events until the stream closes: (event, data) pairs.
+async fn read_events(mut response: reqwest::Response) -> Vec<(String, Value)> {
+    let mut text = String::new();
+    while let Some(chunk) = tokio::time::timeout(Duration::from_secs(60), response.chunk())
+        .await
+        .expect("the stream moves")
+        .unwrap()
+    {
+        text.push_str(&String::from_utf8_lossy(&chunk));
+    }
+    let mut events = Vec::new();
+    for block in text.split("\n\n") {
+        let mut event = None;
+        let mut data = String::new();
+        for line in block.lines() {
+            if let Some(e) = line.strip_prefix("event:") {
+                event = Some(e.trim().to_string());
+            } else if let Some(d) = line.strip_prefix("data:") {
+                data.push_str(d.trim_start());
+            }
+        }
+        if let Some(event) = event {
+            events.push((event, serde_json::from_str(&data).unwrap()));
+        }
+    }
+    events
+}
+
+/// The event stream shows progress at each shot, then `done` with the same job polling shows; a
+/// late client gets one progress and done.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn events_stream_progress_then_done() {
+    let base = start(ServiceConfig::new(data_dir("events"))).await;
+    let client = client();
+    let job = submit_ok(&client, &base, "order=1", cluttered_scene(3)).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let response = client
+        .get(format!("{base}/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .starts_with("text/event-stream"));
+    let events = read_events(response).await;
+    let (last, done) = events.last().expect("events");
+    assert_eq!(last, "done");
+    assert_eq!(done["state"], "succeeded");
+    let progress: Vec<&Value> = events
+        .iter()
+        .filter(|(e, _)| e == "progress")
+        .map(|(_, d)| d)
+        .collect();
+    assert_eq!(
+        progress.len() + 1,
+        events.len(),
+        "only progress before done"
+    );
+    assert!(
+        progress.len() >= 3,
+        "progress at the shots: {}",
+        progress.len()
+    );
+    let shots: Vec<u64> = progress
+        .iter()
+        .map(|p| p["iterations"].as_u64().unwrap())
+        .collect();
+    assert!(shots.windows(2).all(|w| w[0] <= w[1]), "{shots:?}");
+    assert_eq!(
+        *done,
+        get_job(&client, &base, &id).await,
+        "same state as polling"
+    );
+
+    let late = client
+        .get(format!("{base}/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    let events = read_events(late).await;
+    let names: Vec<&str> = events.iter().map(|(e, _)| e.as_str()).collect();
+    assert_eq!(names, ["progress", "done"]);
+    assert_eq!(events[0].1, done["progress"]);
+    let missing = client
+        .get(format!("{base}/v1/jobs/0000000000000000/events"))
+        .send()
+        .await
+        .unwrap();
+    error_of(missing, StatusCode::NOT_FOUND).await;
+}
+
+/// With a token every /v1 route needs it; /healthz and /metrics stay open.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bearer_token_guards_every_v1_route() {
+    let mut config = ServiceConfig::new(data_dir("auth"));
+    config.api_token = Some("s3cret-token".into());
+    let base = start(config).await;
+    let client = client();
+    for path in [
+        "/v1/jobs",
+        "/v1/openapi.json",
+        "/v1/jobs/0000000000000000",
+        "/v1/nope",
+    ] {
+        let response = client.get(format!("{base}{path}")).send().await.unwrap();
+        assert_eq!(response.headers()["www-authenticate"], "Bearer");
+        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
+        assert_eq!(error["code"], "unauthorized", "{path}");
+        assert!(error["message"].as_str().unwrap().contains("Bearer"));
+        let wrong = client
+            .get(format!("{base}{path}"))
+            .bearer_auth("s3cret-tokeN")
+            .send()
+            .await
+            .unwrap();
+        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+    }
+    let post = client
+        .post(format!("{base}/v1/jobs?order=1"))
+        .header("content-type", "model/gltf-binary")
+        .body(small_scene(0.5))
+        .send()
+        .await
+        .unwrap();
+    error_of(post, StatusCode::UNAUTHORIZED).await;
+    let ok = client
+        .get(format!("{base}/v1/jobs"))
+        .bearer_auth("s3cret-token")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(ok.status(), StatusCode::OK);
+    for open in ["/healthz", "/metrics"] {
+        let r = client.get(format!("{base}{open}")).send().await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK, "{open}");
+    }
+}
+
+/// `/metrics` is Prometheus text, every series `wavrad_*`, counting what happened.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metrics_count_jobs_and_solves() {
+    let base = start(ServiceConfig::new(data_dir("metrics"))).await;
+    let client = client();
+    let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let id = job["id"].as_str().unwrap();
+    wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    // The counters are updated just after the state: poll briefly.
+    let start = Instant::now();
+    let text = loop {
+        let r = client.get(format!("{base}/metrics")).send().await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK);
+        assert!(r.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/plain"));
+        let text = r.text().await.unwrap();
+        if text.contains("\nwavrad_solves_total 1\n") || start.elapsed() > Duration::from_secs(5) {
+            break text;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    let value = |name: &str| -> f64 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.parse().ok())
+            .unwrap_or_else(|| panic!("{name} in\n{text}"))
+    };
+    for line in text.lines().filter(|l| !l.is_empty()) {
+        let name = line
+            .strip_prefix("# HELP ")
+            .or_else(|| line.strip_prefix("# TYPE "))
+            .unwrap_or(line);
+        assert!(name.starts_with("wavrad_"), "{line}");
+    }
+    assert_eq!(value("wavrad_jobs{state=\"succeeded\"}"), 1.0);
+    assert_eq!(value("wavrad_jobs{state=\"queued\"}"), 0.0);
+    assert_eq!(value("wavrad_queue_depth"), 0.0);
+    assert_eq!(value("wavrad_queue_capacity"), 64.0);
+    assert_eq!(value("wavrad_solves_total"), 1.0);
+    assert!(value("wavrad_shots_total") > 0.0);
+    assert!(value("wavrad_rays_total") > 0.0);
+    assert!(value("wavrad_elements_total") > 0.0);
+    assert!(value("wavrad_solve_seconds_total") > 0.0);
+}

@@ -49,7 +49,6 @@ impl Service {
     }
 
     /// SIGTERM, then waits for the process to exit; returns how long it took.
-    #[allow(dead_code)]
     fn terminate(mut self) -> Duration {
         let t = Instant::now();
         // SAFETY: kill(2) with the pid of our own child.
@@ -244,5 +243,42 @@ async fn finished_results_survive_a_restart() {
     // The idempotency key survived too: a retry gets the same job.
     let retried = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
     assert_eq!(retried, id);
+    drop(service);
+}
+
+/// SIGTERM: the server stops accepting, the running job stops at its next check and is persisted
+/// as queued, the process exits 0; the next start runs the job to its end.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_requeues_the_running_job() {
+    let data = data_dir("sigterm");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let id = submit(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=3",
+        box_scene(1.0, 3),
+    )
+    .await;
+    wait_until(&client, &base, &id, Duration::from_secs(20), |j| {
+        j["state"] == "running"
+    })
+    .await;
+    let took = service.terminate();
+    assert!(took < Duration::from_secs(2), "shutdown took {took:?}");
+    let record: Value = serde_json::from_slice(
+        &std::fs::read(data.join("jobs").join(&id).join("state.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(record["state"], "queued", "{record}");
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let done = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    assert_eq!(done["stop_reason"], "time_budget");
     drop(service);
 }

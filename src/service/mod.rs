@@ -16,6 +16,7 @@
 pub mod error;
 pub mod extract;
 pub mod jobs;
+pub mod metrics;
 pub mod recovery;
 pub mod routes;
 pub mod runner;
@@ -24,6 +25,7 @@ pub mod time;
 
 pub use error::ApiError;
 pub use jobs::{Job, JobBoard, JobState, JobView, ProgressView};
+pub use recovery::Recovered;
 pub use store::{FileStore, JobId};
 
 use axum::extract::{DefaultBodyLimit, Request, State};
@@ -64,6 +66,8 @@ pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
 pub const RETRY_AFTER_SECONDS: u64 = 10;
 /// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
 pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
+/// Longest a shutdown waits for running solves to stop and be persisted as queued.
+pub const SHUTDOWN_SOLVE_WAIT: Duration = Duration::from_secs(30);
 /// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
 pub const MAX_IN_FLIGHT_REQUESTS: usize = 1024;
 /// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
@@ -181,6 +185,11 @@ struct Shared {
     in_flight: Arc<Semaphore>,
     /// Held while a POST with an `Idempotency-Key` stores its job.
     keyed_submissions: tokio::sync::Mutex<()>,
+    metrics: metrics::Metrics,
+    /// True once the server is shutting down (server-sent event streams end on it).
+    shutdown: tokio::sync::watch::Sender<bool>,
+    /// Solves in progress on the pool (a shutdown waits for them to be persisted).
+    active_solves: std::sync::atomic::AtomicUsize,
 }
 
 impl AppState {
@@ -208,6 +217,9 @@ impl AppState {
                 upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
                 in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
                 keyed_submissions: tokio::sync::Mutex::new(()),
+                metrics: metrics::Metrics::default(),
+                shutdown: tokio::sync::watch::Sender::new(false),
+                active_solves: std::sync::atomic::AtomicUsize::new(0),
             }),
         };
         runner::enforce_retention(&state);
@@ -225,6 +237,62 @@ impl AppState {
 
     pub fn jobs(&self) -> &JobBoard {
         &self.inner.jobs
+    }
+
+    pub fn metrics(&self) -> &metrics::Metrics {
+        &self.inner.metrics
+    }
+
+    /// Whether the server is shutting down.
+    pub fn is_shutting_down(&self) -> bool {
+        *self.inner.shutdown.borrow()
+    }
+
+    /// A receiver that sees the start of the shutdown.
+    pub fn shutdown_signal(&self) -> tokio::sync::watch::Receiver<bool> {
+        self.inner.shutdown.subscribe()
+    }
+
+    /// Starts the shutdown: runners take no more jobs, running solves stop at their next check
+    /// and go back to `queued` (persisted), event streams end.
+    pub fn begin_shutdown(&self) {
+        self.inner.shutdown.send_replace(true);
+        for job in self.jobs().list() {
+            if job.state() == JobState::Running {
+                job.request_requeue();
+            }
+        }
+    }
+
+    pub(crate) fn solve_started(&self) {
+        self.inner
+            .active_solves
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    pub(crate) fn solve_ended(&self) {
+        self.inner
+            .active_solves
+            .fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Waits until no solve is in progress, at most `limit`; true when none is.
+    pub async fn wait_for_solves(&self, limit: Duration) -> bool {
+        let start = std::time::Instant::now();
+        loop {
+            if self
+                .inner
+                .active_solves
+                .load(std::sync::atomic::Ordering::SeqCst)
+                == 0
+            {
+                return true;
+            }
+            if start.elapsed() >= limit {
+                return false;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
     }
 
     pub(crate) fn keyed_submissions(&self) -> &tokio::sync::Mutex<()> {
@@ -271,6 +339,7 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
     }
     vec![
         route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
+        route("/metrics", Method::GET, &["/metrics"], get(routes::metrics)),
         route(
             "/v1/openapi.json",
             Method::GET,
@@ -300,6 +369,12 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
             Method::DELETE,
             &["/v1/jobs/{id}"],
             delete(routes::delete_job),
+        ),
+        route(
+            "/v1/jobs/{id}/events",
+            Method::GET,
+            &["/v1/jobs/{id}/events"],
+            get(routes::job_events),
         ),
         route(
             "/v1/jobs/{id}/result",
@@ -345,6 +420,7 @@ pub fn app(state: AppState) -> Router {
             StatusCode::REQUEST_TIMEOUT,
             REQUEST_TIMEOUT,
         ))
+        .layer(middleware::from_fn_with_state(state.clone(), require_token))
         .layer(middleware::from_fn_with_state(
             state.clone(),
             limit_in_flight,
@@ -353,6 +429,54 @@ pub fn app(state: AppState) -> Router {
         .layer(CatchPanicLayer::custom(error::panic_response))
         .layer(TraceLayer::new_for_http())
         .with_state(state)
+}
+
+/// With `--api-token`, every `/v1` route needs `Authorization: Bearer <token>` (401 otherwise);
+/// `/healthz` and `/metrics` stay open.
+async fn require_token(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let Some(token) = state.config().api_token.as_deref() else {
+        return next.run(request).await;
+    };
+    let path = request.uri().path();
+    if !(path == "/v1" || path.starts_with("/v1/")) {
+        return next.run(request).await;
+    }
+    let given = request
+        .headers()
+        .get(axum::http::header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| {
+            let (scheme, rest) = v.trim().split_once(' ')?;
+            scheme.eq_ignore_ascii_case("bearer").then(|| rest.trim())
+        });
+    match given {
+        Some(given) if constant_time_eq(given.as_bytes(), token.as_bytes()) => {
+            next.run(request).await
+        }
+        _ => {
+            let message = if given.is_some() {
+                "the bearer token is not valid for this server"
+            } else {
+                "this server needs 'Authorization: Bearer <token>' on every /v1 route (the token \
+                 is the server's --api-token / WAVRAD_API_TOKEN)"
+            };
+            let mut response =
+                ApiError::new(StatusCode::UNAUTHORIZED, "unauthorized", message).into_response();
+            response.headers_mut().insert(
+                axum::http::header::WWW_AUTHENTICATE,
+                axum::http::HeaderValue::from_static("Bearer"),
+            );
+            response
+        }
+    }
+}
+
+/// Compares two byte strings in time independent of where they differ.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
 /// Refuses a request with 503 when `MAX_IN_FLIGHT_REQUESTS` are already being handled.
@@ -407,14 +531,23 @@ impl Server {
         self.run_until(shutdown_signal()).await
     }
 
-    /// Serves until `shutdown` completes, then finishes the requests in progress.
+    /// Serves until `shutdown` completes; then stops accepting, stops running solves at their
+    /// next check and persists them as `queued`, finishes the requests in progress, and returns.
     pub async fn run_until(
         self,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> io::Result<()> {
-        axum::serve(self.listener, app(self.state))
-            .with_graceful_shutdown(shutdown)
+        let state = self.state.clone();
+        let signal = async move {
+            shutdown.await;
+            state.begin_shutdown();
+        };
+        axum::serve(self.listener, app(self.state.clone()))
+            .with_graceful_shutdown(signal)
             .await?;
+        if !self.state.wait_for_solves(SHUTDOWN_SOLVE_WAIT).await {
+            tracing::warn!("a solve did not stop in time; its job is re-queued at the next start");
+        }
         tracing::info!("wavrad serve stopped");
         Ok(())
     }

@@ -13,6 +13,7 @@ use axum::body::{Body, Bytes};
 use axum::extract::multipart::MultipartError;
 use axum::extract::{FromRequest, Multipart, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, StatusCode};
+use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
@@ -45,6 +46,89 @@ pub async fn openapi() -> Result<Json<&'static serde_json::Value>, ApiError> {
     openapi_document()
         .map(Json)
         .map_err(|e| ApiError::internal("the embedded OpenAPI document does not parse", e))
+}
+
+/// `GET /metrics`: Prometheus text.
+pub async fn metrics(State(state): State<AppState>) -> Response {
+    let mut response = Response::new(Body::from(super::metrics::render(&state)));
+    response.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/plain; version=0.0.4; charset=utf-8"),
+    );
+    response
+}
+
+/// Seconds between keep-alive comments on an event stream.
+const SSE_KEEP_ALIVE: std::time::Duration = std::time::Duration::from_secs(15);
+
+/// Where an event stream is.
+enum EventPhase {
+    /// Nothing sent yet: send the current progress.
+    Start,
+    /// Following the job's watch channel.
+    Follow,
+    /// The job ended: send `done`.
+    Done,
+    /// Closed.
+    End,
+}
+
+/// `GET /v1/jobs/{id}/events`: server-sent events, `progress` (the progress object) at every
+/// change of the job's state, then `done` (the job) when it ends. Reads the same watch channel as
+/// polling. A client that connects after the end gets one `progress` and `done`. The stream also
+/// ends when the server shuts down.
+pub async fn job_events(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+) -> Result<Response, ApiError> {
+    let job = find(&state, &id)?;
+    let rx = job.subscribe();
+    let shutdown = state.shutdown_signal();
+    let stream = futures_util::stream::unfold(
+        (EventPhase::Start, job, rx, shutdown),
+        |(phase, job, mut rx, mut shutdown)| async move {
+            let progress_event = |job: &Job| {
+                Event::default()
+                    .event("progress")
+                    .json_data(job.view().progress)
+            };
+            match phase {
+                EventPhase::Start => {
+                    rx.borrow_and_update();
+                    let next = if job.state().is_finished() {
+                        EventPhase::Done
+                    } else {
+                        EventPhase::Follow
+                    };
+                    Some((progress_event(&job), (next, job, rx, shutdown)))
+                }
+                EventPhase::Follow => {
+                    let changed = tokio::select! {
+                        changed = rx.changed() => changed.is_ok(),
+                        _ = shutdown.wait_for(|down| *down) => false,
+                    };
+                    if !changed {
+                        return None;
+                    }
+                    let finished = rx.borrow_and_update().state.is_finished();
+                    let next = if finished {
+                        EventPhase::Done
+                    } else {
+                        EventPhase::Follow
+                    };
+                    Some((progress_event(&job), (next, job, rx, shutdown)))
+                }
+                EventPhase::Done => {
+                    let done = Event::default().event("done").json_data(job.view());
+                    Some((done, (EventPhase::End, job, rx, shutdown)))
+                }
+                EventPhase::End => None,
+            }
+        },
+    );
+    Ok(Sse::new(stream)
+        .keep_alive(KeepAlive::new().interval(SSE_KEEP_ALIVE))
+        .into_response())
 }
 
 /// `GET /healthz`.
