@@ -45,7 +45,7 @@ use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::timeout::TimeoutLayer;
-use tower_http::trace::TraceLayer;
+use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
 
 /// Data directory when none is given (CONTRACT "Names").
 pub const DEFAULT_DATA_DIR: &str = "./wavrad-data";
@@ -427,7 +427,13 @@ pub fn app(state: AppState) -> Router {
         ))
         .layer(middleware::map_response(error::normalize_error_response))
         .layer(CatchPanicLayer::custom(error::panic_response))
-        .layer(TraceLayer::new_for_http())
+        // A span per request at INFO (method, path), so what a handler logs carries its request;
+        // the per-response line is DEBUG so polling floods no log. 5xx are logged at ERROR.
+        .layer(
+            TraceLayer::new_for_http()
+                .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
+                .on_response(DefaultOnResponse::new().level(tracing::Level::DEBUG)),
+        )
         .with_state(state)
 }
 
