@@ -1271,3 +1271,50 @@ async fn metrics_count_jobs_and_solves() {
     assert!(value("wavrad_elements_total") > 0.0);
     assert!(value("wavrad_solve_seconds_total") > 0.0);
 }
+
+/// Every file of `tests/data/malformed/` (written by its `make.py`: truncated, wrong magic, huge
+/// counts, cyclic node graphs, NaN, missing buffers, data URIs lying about their size, ...) is
+/// refused with a 4xx and a message, and the server keeps serving.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn malformed_files_get_4xx_and_the_server_stays_up() {
+    let base = start(ServiceConfig::new(data_dir("malformed"))).await;
+    let client = client();
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/malformed"));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e != "py"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 25, "the corpus is there: {}", files.len());
+    for path in files {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let content_type = match path.extension().and_then(|e| e.to_str()) {
+            Some("gltf") => "model/gltf+json",
+            _ => "model/gltf-binary",
+        };
+        let bytes = std::fs::read(&path).unwrap();
+        let response = submit(&client, &base, "order=1", content_type, bytes).await;
+        let status = response.status();
+        assert!(status.is_client_error(), "{name}: {status}");
+        let body: Value = response
+            .json()
+            .await
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let message = body["error"]["message"].as_str().unwrap_or("");
+        assert!(message.len() > 10, "{name}: {body}");
+        assert!(body["error"]["code"].is_string(), "{name}: {body}");
+        println!("{name}: {status} {}: {message}", body["error"]["code"]);
+        let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+        assert_eq!(health.status(), StatusCode::OK, "after {name}");
+    }
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list, json!({"jobs": []}), "no job was created");
+}
