@@ -155,6 +155,12 @@ pub struct ServeArgs {
     /// Bearer token every /v1 route then requires (/healthz and /metrics stay open).
     #[arg(long, env = "WAVRAD_API_TOKEN", hide_env_values = true)]
     pub api_token: Option<String>,
+    /// Requests handled at once; beyond it 503.
+    #[arg(long, env = "WAVRAD_MAX_IN_FLIGHT", default_value_t = crate::service::DEFAULT_MAX_IN_FLIGHT)]
+    pub max_in_flight: usize,
+    /// Longest a request may take, upload included (seconds); beyond it 408.
+    #[arg(long, env = "WAVRAD_REQUEST_TIMEOUT_SECONDS", default_value_t = crate::service::DEFAULT_REQUEST_TIMEOUT.as_secs())]
+    pub request_timeout_seconds: u64,
 }
 
 fn init_logging(format: &str) {
@@ -330,6 +336,8 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.max_job_seconds = a.max_job_seconds;
     config.retain_jobs = a.retain_jobs;
     config.api_token = a.api_token;
+    config.max_in_flight = a.max_in_flight;
+    config.request_timeout = std::time::Duration::from_secs(a.request_timeout_seconds);
     if let Err(e) = config.validate() {
         return bad_input(e);
     }

@@ -1318,3 +1318,60 @@ async fn malformed_files_get_4xx_and_the_server_stays_up() {
         .unwrap();
     assert_eq!(list, json!({"jobs": []}), "no job was created");
 }
+
+/// The rarer answers are JSON errors too: 503 when `--max-in-flight` requests are being handled,
+/// 408 when a request outlives `--request-timeout-seconds`, 500 when the store cannot be written.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn busy_timeout_and_internal_errors_are_json() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let dir = data_dir("rare");
+    let mut config = ServiceConfig::new(&dir);
+    config.max_in_flight = 1;
+    config.request_timeout = Duration::from_secs(1);
+    let base = start(config).await;
+    let client = client();
+    let addr = base.trim_start_matches("http://").to_string();
+
+    // A slow upload holds the only request slot: it declares 1000 bytes and sends 10.
+    let mut slow = tokio::net::TcpStream::connect(&addr).await.unwrap();
+    let head = format!(
+        "POST /v1/jobs?order=1 HTTP/1.1\r\nHost: {addr}\r\nContent-Type: model/gltf-binary\r\n\
+         Content-Length: 1000\r\nConnection: close\r\n\r\nglTF\x02\0\0\0\0\0"
+    );
+    slow.write_all(head.as_bytes()).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let busy = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert!(busy.headers().contains_key("retry-after"));
+    assert_eq!(
+        error_of(busy, StatusCode::SERVICE_UNAVAILABLE).await["code"],
+        "server_busy"
+    );
+
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(10), slow.read_to_end(&mut answer))
+        .await
+        .expect("the slow request is answered")
+        .unwrap();
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    let body: Value =
+        serde_json::from_str(&answer[answer.find("\r\n\r\n").unwrap() + 4..]).unwrap();
+    assert_eq!(body["error"]["code"], "request_timeout");
+
+    // The store's jobs directory turns into a file: storing a job fails, the server does not.
+    std::fs::remove_dir_all(dir.join("jobs")).unwrap();
+    std::fs::write(dir.join("jobs"), b"not a directory").unwrap();
+    let response = submit(
+        &client,
+        &base,
+        "order=1",
+        "model/gltf-binary",
+        small_scene(0.5),
+    )
+    .await;
+    let error = error_of(response, StatusCode::INTERNAL_SERVER_ERROR).await;
+    assert_eq!(error["code"], "internal_error");
+    assert!(error["message"].as_str().unwrap().contains("server log"));
+    let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert_eq!(health.status(), StatusCode::OK);
+}

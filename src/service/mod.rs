@@ -65,11 +65,11 @@ pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
 /// Seconds a client is told to wait (`Retry-After`) when the queue or the server is full.
 pub const RETRY_AFTER_SECONDS: u64 = 10;
 /// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
-pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
+pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
 /// Longest a shutdown waits for running solves to stop and be persisted as queued.
 pub const SHUTDOWN_SOLVE_WAIT: Duration = Duration::from_secs(30);
 /// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
-pub const MAX_IN_FLIGHT_REQUESTS: usize = 1024;
+pub const DEFAULT_MAX_IN_FLIGHT: usize = 1024;
 /// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
 pub const MAX_CONCURRENT_UPLOADS: usize = 4;
 
@@ -96,6 +96,10 @@ pub struct ServiceConfig {
     pub retain_jobs: Option<usize>,
     /// When set, every `/v1` route needs `Authorization: Bearer <token>` (401 otherwise).
     pub api_token: Option<String>,
+    /// Requests handled at once; one more is refused with 503.
+    pub max_in_flight: usize,
+    /// Longest a request may take, upload included; beyond it 408.
+    pub request_timeout: Duration,
 }
 
 impl std::fmt::Debug for ServiceConfig {
@@ -110,6 +114,8 @@ impl std::fmt::Debug for ServiceConfig {
             .field("max_job_seconds", &self.max_job_seconds)
             .field("retain_jobs", &self.retain_jobs)
             .field("api_token", &self.api_token.as_ref().map(|_| "<set>"))
+            .field("max_in_flight", &self.max_in_flight)
+            .field("request_timeout", &self.request_timeout)
             .finish()
     }
 }
@@ -127,6 +133,8 @@ impl ServiceConfig {
             max_job_seconds: None,
             retain_jobs: None,
             api_token: None,
+            max_in_flight: DEFAULT_MAX_IN_FLIGHT,
+            request_timeout: DEFAULT_REQUEST_TIMEOUT,
         }
     }
 
@@ -146,6 +154,12 @@ impl ServiceConfig {
         }
         if self.max_memory_bytes == 0 {
             return Err("--max-memory-bytes must be at least 1".into());
+        }
+        if self.max_in_flight == 0 {
+            return Err("--max-in-flight must be at least 1".into());
+        }
+        if self.request_timeout.is_zero() {
+            return Err("--request-timeout-seconds must be at least 1".into());
         }
         if self.max_job_seconds == Some(0) {
             return Err("--max-job-seconds must be at least 1".into());
@@ -209,13 +223,14 @@ impl AppState {
         recovery::recover(&store, &jobs)?;
         let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
+        let max_in_flight = config.max_in_flight;
         let state = AppState {
             inner: Arc::new(Shared {
                 jobs,
                 config,
                 store,
                 upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
-                in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
+                in_flight: Arc::new(Semaphore::new(max_in_flight)),
                 keyed_submissions: tokio::sync::Mutex::new(()),
                 metrics: metrics::Metrics::default(),
                 shutdown: tokio::sync::watch::Sender::new(false),
@@ -418,7 +433,7 @@ pub fn app(state: AppState) -> Router {
         // normaliser; a panic anywhere inside becomes a JSON 500.
         .layer(TimeoutLayer::with_status_code(
             StatusCode::REQUEST_TIMEOUT,
-            REQUEST_TIMEOUT,
+            state.config().request_timeout,
         ))
         .layer(middleware::from_fn_with_state(state.clone(), require_token))
         .layer(middleware::from_fn_with_state(
@@ -485,7 +500,7 @@ fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
     a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
-/// Refuses a request with 503 when `MAX_IN_FLIGHT_REQUESTS` are already being handled.
+/// Refuses a request with 503 when `max_in_flight` requests are already being handled.
 async fn limit_in_flight(State(state): State<AppState>, request: Request, next: Next) -> Response {
     let Ok(_permit) = state.inner.in_flight.clone().try_acquire_owned() else {
         return ApiError {
