@@ -1,17 +1,21 @@
 //! `wavrad serve`: the HTTP job service (CONTRACT "HTTP API (v1)", DESIGN.md section 8).
 //!
-//! - [`app`] builds the router from an [`AppState`]; [`Server`] binds and serves it; [`serve`] does
-//!   both and stops on Ctrl-C or SIGTERM.
+//! - [`api_routes`] is the table of every route; [`app`] builds the router from it (a test checks
+//!   it against `api/openapi.yaml`, served at `/v1/openapi.json`); [`Server`] binds and serves;
+//!   [`serve`] does both and stops on Ctrl-C or SIGTERM.
 //! - Errors: one type, [`ApiError`], rendered as the CONTRACT's error JSON; extractors are wrapped
 //!   ([`extract`]) and a last middleware rewrites any other error response into that shape.
+//!   Middleware: optional bearer token on `/v1`, in-flight limit (503), timeout (408).
 //! - Jobs ([`jobs`]): a bounded queue feeding `workers` runners ([`runner`]) that solve on a
-//!   dedicated rayon pool under `catch_unwind`; each job's state lives in a `watch` channel that
-//!   polling (and, later, server-sent events) read.
+//!   dedicated, niced rayon pool under `catch_unwind`; each job's state lives in a `watch` channel
+//!   that polling and server-sent events both read.
 //! - Store ([`store`]): one directory per job under `data_dir/jobs/`, every write atomic; the job's
-//!   files are on disk before its 202 is sent.
+//!   files are on disk before its 202 is sent. [`recovery`] reads them back at start.
+//! - Shutdown: stop accepting, stop running solves at their next check and persist them as
+//!   `queued`, end event streams, then return.
+//! - [`metrics`]: `/metrics` in Prometheus text.
 //!
-//! Not yet: resuming jobs after a restart, server-sent events, multipart uploads, idempotency
-//! keys, bearer-token auth, `/metrics`, job retention.
+//! Not yet: `POST /v1/jobs/{id}/probes` and the dashboard page `GET /`.
 
 pub mod error;
 pub mod extract;
