@@ -8,9 +8,9 @@
 # 2. submits one long solve (the bundled Kenney scene at order 3, small tolerance, 120 s budget)
 #    and waits until it is running: the solver pool now saturates every core;
 # 3. wrk, 64 connections for $DURATION s: GET /v1/jobs/{id} -> requests/s and p99 latency;
-# 4. wrk, 16 connections: POST /v1/jobs (a small scene) until the queue is full (first 429)
-#    -> p99 latency of the submissions;
-# 5. checks the solve was still running throughout, prints its progress, stops the server.
+# 4. wrk, 16 connections: POST /v1/jobs (a small scene) until the queue is full (each wrk thread
+#    stops at its first 429; wrk itself still runs out its 15 s) -> p99 latency of the submissions;
+# 5. prints the solve's state after each phase (it must say running) and stops the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=${WAVRAD_BIN:-target/release/wavrad}
@@ -43,10 +43,12 @@ echo "solve $ID running: $(curl -s "$BASE/v1/jobs/$ID" | sed -n 's/.*"progress":
 echo "--- GET /v1/jobs/{id}, 64 connections, ${DURATION} s, while the solve runs"
 wrk -t2 -c64 -d"${DURATION}s" --latency "$BASE/v1/jobs/$ID" >"$DATA/get.txt"
 grep -E "Requests/sec|^ +99%|^ +50%|Non-2xx|Socket errors" "$DATA/get.txt" | sed 's/^ */  /'
+echo "  the solve after polling: $(state "$ID")"
 
 echo "--- POST /v1/jobs, 16 connections, until the queue ($MAX_QUEUED) is full"
-SCENE="$SMALL_SCENE" wrk -t2 -c16 -d60s --latency -s bench/post.lua "$BASE/v1/jobs" >"$DATA/post.txt"
+SCENE="$SMALL_SCENE" wrk -t2 -c16 -d15s --latency -s bench/post.lua "$BASE/v1/jobs" >"$DATA/post.txt"
 grep -E "^POST|Socket errors" "$DATA/post.txt" | sed 's/^ */  /'
+echo "  the solve after the submissions: $(state "$ID")"
 
-echo "--- the solve during all this: $(state "$ID"), $(curl -s "$BASE/v1/jobs/$ID" | sed -n 's/.*"progress":\({[^}]*}\).*/\1/p')"
+echo "--- the solve now: $(state "$ID"), $(curl -s "$BASE/v1/jobs/$ID" | sed -n 's/.*"progress":\({[^}]*}\).*/\1/p')"
 curl -s "$BASE/metrics" | grep -E '^wavrad_(queue_depth|running_shots) '
