@@ -26,13 +26,17 @@ impl Service {
     /// Starts the binary on 127.0.0.1 port 0 and reads the bound address from its first stdout
     /// line (`{"listening": "127.0.0.1:PORT"}`).
     fn start(data: &Path, extra: &[&str]) -> Service {
+        Self::start_logging(data, extra, "warn", Stdio::inherit())
+    }
+
+    fn start_logging(data: &Path, extra: &[&str], level: &str, stderr: Stdio) -> Service {
         let mut child = Command::new(env!("CARGO_BIN_EXE_wavrad"))
             .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
             .arg(data)
             .args(extra)
-            .env("RUST_LOG", "warn")
+            .env("RUST_LOG", level)
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(stderr)
             .spawn()
             .expect("wavrad serve starts");
         let stdout = child.stdout.take().unwrap();
@@ -281,4 +285,40 @@ async fn sigterm_requeues_the_running_job() {
     .await;
     assert_eq!(done["stop_reason"], "time_budget");
     drop(service);
+}
+
+/// `--log-format json`: every log line is a JSON object; what a request handler logs carries a
+/// `request` span (method, uri), what a solve logs a `job` span with the job's id.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn json_logs_carry_request_and_job_spans() {
+    let data = data_dir("json-logs");
+    std::fs::create_dir_all(&data).unwrap();
+    let log_path = data.join("server.log");
+    let log = std::fs::File::create(&log_path).unwrap();
+    let client = client();
+    let service = Service::start_logging(&data, &["--log-format", "json"], "info", log.into());
+    let base = service.base.clone();
+    let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+    wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    service.terminate();
+    let text = std::fs::read_to_string(&log_path).unwrap();
+    let lines: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    let accepted = lines
+        .iter()
+        .find(|l| l["fields"]["message"] == "job accepted")
+        .expect("the acceptance is logged");
+    assert_eq!(accepted["span"]["name"], "request", "{accepted}");
+    assert_eq!(accepted["span"]["method"], "POST");
+    let solved = lines
+        .iter()
+        .find(|l| l["fields"]["message"] == "job finished")
+        .expect("the end of the solve is logged");
+    assert_eq!(solved["span"]["name"], "job", "{solved}");
+    assert_eq!(solved["span"]["id"], id.as_str());
 }
