@@ -99,13 +99,55 @@ fn check_container(bytes: &[u8]) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// Every accessor index of a primitive (attributes, indices, morph targets) is in range.
+fn check_accessor_indices(root: &gltf::json::Root) -> Result<(), SceneError> {
+    let count = root.accessors.len();
+    let mut bad = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let place = format!("meshes[{m}].primitives[{p}]");
+            for (semantic, index) in &primitive.attributes {
+                if index.value() >= count {
+                    bad.push(format!("{place}.attributes.{semantic:?}"));
+                }
+            }
+            if primitive.indices.is_some_and(|i| i.value() >= count) {
+                bad.push(format!("{place}.indices"));
+            }
+            for (t, target) in primitive.targets.iter().flatten().enumerate() {
+                let indices = [&target.positions, &target.normals, &target.tangents];
+                if indices
+                    .iter()
+                    .any(|i| i.is_some_and(|i| i.value() >= count))
+                {
+                    bad.push(format!("{place}.targets[{t}]"));
+                }
+            }
+        }
+    }
+    if bad.is_empty() {
+        return Ok(());
+    }
+    Err(SceneError::Unreadable(format!(
+        "invalid glTF: {}: accessor index out of bounds (the file has {count} accessor(s))",
+        bad.join(", ")
+    )))
+}
+
 fn load_scene_unchecked(
     bytes: &[u8],
     external: &ExternalFiles,
     max_triangles: usize,
 ) -> Result<Scene, SceneError> {
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(bytes).map_err(|e| SceneError::Unreadable(e.to_string()))?;
+    // Parsed without validation first: gltf-json's validation indexes `accessors` with a
+    // primitive's POSITION index unchecked (a panic on a bad index, found by fuzzing), so the
+    // primitives' accessor indices are checked before it runs.
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| SceneError::Unreadable(e.to_string()))?;
+    let root = document.into_json();
+    check_accessor_indices(&root)?;
+    let document =
+        gltf::Document::from_json(root).map_err(|e| SceneError::Unreadable(e.to_string()))?;
     let buffers = load_buffers(&document, blob, external)?;
     let mut warnings = Vec::new();
     let mut problems = Vec::new();
