@@ -290,10 +290,13 @@ fn cli_solve_writes_the_contract_outputs() {
 /// not by the importer's panic guard ("the glTF parser failed").
 #[test]
 fn fuzz_crashes_are_refused_with_a_reason() {
-    let cases = [(
-        "fuzz_position_accessor_out_of_range.gltf",
-        "accessor index out of bounds",
-    )];
+    let cases = [
+        (
+            "fuzz_position_accessor_out_of_range.gltf",
+            "accessor index out of bounds",
+        ),
+        ("fuzz_accessor_count_zero.glb", "count must be at least 1"),
+    ];
     for (file, expected) in cases {
         let path = format!("{}/tests/data/malformed/{file}", env!("CARGO_MANIFEST_DIR"));
         let bytes = std::fs::read(&path).unwrap();
