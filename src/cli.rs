@@ -143,6 +143,24 @@ pub struct ServeArgs {
     /// Largest scene; beyond it 422.
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
     pub max_triangles: usize,
+    /// Largest estimated solver memory of one job (bytes); beyond it 422.
+    #[arg(long, env = "WAVRAD_MAX_MEMORY_BYTES", default_value_t = crate::service::DEFAULT_MAX_MEMORY_BYTES)]
+    pub max_memory_bytes: u64,
+    /// Longest solve of one job (seconds): caps every job's max_seconds. Default: no cap.
+    #[arg(long, env = "WAVRAD_MAX_JOB_SECONDS")]
+    pub max_job_seconds: Option<u64>,
+    /// Finished jobs kept; beyond N the oldest are deleted with their files. Default: all.
+    #[arg(long, env = "WAVRAD_RETAIN_JOBS")]
+    pub retain_jobs: Option<usize>,
+    /// Bearer token every /v1 route then requires (/healthz and /metrics stay open).
+    #[arg(long, env = "WAVRAD_API_TOKEN", hide_env_values = true)]
+    pub api_token: Option<String>,
+    /// Requests handled at once; beyond it 503.
+    #[arg(long, env = "WAVRAD_MAX_IN_FLIGHT", default_value_t = crate::service::DEFAULT_MAX_IN_FLIGHT)]
+    pub max_in_flight: usize,
+    /// Longest a request may take, upload included (seconds); beyond it 408.
+    #[arg(long, env = "WAVRAD_REQUEST_TIMEOUT_SECONDS", default_value_t = crate::service::DEFAULT_REQUEST_TIMEOUT.as_secs())]
+    pub request_timeout_seconds: u64,
 }
 
 fn init_logging(format: &str) {
@@ -150,6 +168,7 @@ fn init_logging(format: &str) {
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
     let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
+        .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr);
     if format == "json" {
         let _ = builder.json().try_init();
@@ -336,6 +355,12 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.max_queued = a.max_queued;
     config.max_body_bytes = a.max_body_bytes;
     config.max_triangles = a.max_triangles;
+    config.max_memory_bytes = a.max_memory_bytes;
+    config.max_job_seconds = a.max_job_seconds;
+    config.retain_jobs = a.retain_jobs;
+    config.api_token = a.api_token;
+    config.max_in_flight = a.max_in_flight;
+    config.request_timeout = std::time::Duration::from_secs(a.request_timeout_seconds);
     if let Err(e) = config.validate() {
         return bad_input(e);
     }
@@ -346,7 +371,17 @@ fn serve(a: ServeArgs) -> ExitCode {
         Ok(r) => r,
         Err(e) => return internal(format!("cannot start the async runtime: {e}")),
     };
-    match runtime.block_on(crate::service::serve(config, a.addr)) {
+    let serve = async {
+        let server = crate::service::Server::bind(config, a.addr).await?;
+        // The bound address on stdout (machine output): with `--addr 127.0.0.1:0` this is how a
+        // script or a test learns the port.
+        println!(
+            "{}",
+            serde_json::json!({"listening": server.local_addr().to_string()})
+        );
+        server.run().await
+    };
+    match runtime.block_on(serve) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => bad_input(e),
         Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {

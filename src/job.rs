@@ -123,6 +123,23 @@ impl JobParams {
     }
 }
 
+/// Scene, faces and visibility structure per input triangle (bytes), measured order of magnitude.
+const BYTES_PER_TRIANGLE: u64 = 512;
+/// Elements a triangle's root is refined into on average at the default tolerance (a generous
+/// figure: the sample scenes stay below 2).
+const ELEMENTS_PER_TRIANGLE: u64 = 8;
+/// Per element: tree node (map, links) besides its coefficients.
+const BYTES_PER_NODE: u64 = 64;
+
+/// A rough upper estimate of a solve's memory (bytes): per triangle, its share of scene, faces
+/// and visibility structure, plus `ELEMENTS_PER_TRIANGLE` elements each holding four coefficient
+/// arrays (irradiance, direct, unshot, gathered) of `order^2` functions in three channels of f64.
+pub fn estimated_memory_bytes(triangles: usize, order: usize) -> u64 {
+    let functions = (order * order) as u64;
+    let element = functions * 4 * 3 * 8 + BYTES_PER_NODE;
+    (triangles as u64).saturating_mul(BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * element)
+}
+
 /// Why a job failed.
 #[derive(Debug, thiserror::Error)]
 pub enum JobError {

@@ -706,30 +706,681 @@ async fn an_oversized_chunked_upload_is_refused() {
     assert_eq!(body["error"]["code"], "payload_too_large");
 }
 
-/// The OpenAPI document names every route the service answers.
-#[test]
-fn openapi_describes_every_route() {
-    let doc =
+/// The OpenAPI document served at /v1/openapi.json describes exactly the routes of the router:
+/// every (path, method) of the route table is documented, every documented operation is in the
+/// table, and the live router answers each documented operation (not with the route fallback).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn openapi_describes_exactly_the_routes() {
+    use std::collections::BTreeSet;
+    let base = start(ServiceConfig::new(data_dir("openapi"))).await;
+    let client = client();
+    let response = client
+        .get(format!("{base}/v1/openapi.json"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let doc: Value = response.json().await.unwrap();
+    assert_eq!(doc["openapi"], "3.1.0");
+    let yaml =
         std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/api/openapi.yaml")).unwrap();
-    assert!(doc.starts_with("openapi: 3.1"));
-    for path in [
-        "/healthz:",
-        "/v1/jobs:",
-        "/v1/jobs/{id}:",
-        "/v1/jobs/{id}/result:",
-        "/v1/jobs/{id}/convergence:",
-        "/v1/jobs/{id}/lightmap.exr:",
-        "/v1/jobs/{id}/lightmap-{n}.exr:",
-    ] {
-        assert!(
-            doc.contains(&format!("\n  {path}\n")),
-            "{path} is documented"
-        );
+    assert!(yaml.starts_with("openapi: 3.1"), "the YAML is the source");
+
+    let mut documented = BTreeSet::new();
+    for (path, item) in doc["paths"].as_object().unwrap() {
+        for method in ["get", "post", "put", "patch", "delete"] {
+            if item.get(method).is_some() {
+                documented.insert((path.clone(), method.to_uppercase()));
+            }
+        }
     }
-    for schema in ["Job:", "Progress:", "Error:"] {
+    let mut routed = BTreeSet::new();
+    for route in wavrad::service::api_routes(1) {
+        for path in route.documented {
+            routed.insert((path.to_string(), route.method.to_string()));
+        }
+    }
+    assert_eq!(routed, documented, "route table and OpenAPI document agree");
+
+    for (path, method) in &documented {
+        let url = format!(
+            "{base}{}",
+            path.replace("{id}", "0000000000000000").replace("{n}", "1")
+        );
+        let method = reqwest::Method::from_bytes(method.as_bytes()).unwrap();
+        let response = client.request(method.clone(), &url).send().await.unwrap();
+        let status = response.status();
+        if status.is_client_error() {
+            let body: Value = response.json().await.unwrap();
+            let code = body["error"]["code"].as_str().unwrap().to_string();
+            assert!(
+                code != "not_found" && code != "method_not_allowed",
+                "{method} {path}: the router does not answer it ({code})"
+            );
+        } else {
+            assert!(status.is_success(), "{method} {path}: {status}");
+        }
+    }
+    for schema in ["Job", "Progress", "Error"] {
         assert!(
-            doc.contains(&format!("\n    {schema}\n")),
+            doc["components"]["schemas"][schema].is_object(),
             "schema {schema}"
         );
     }
+}
+
+/// A room lit from its -x wall holding a `k x k` grid of small double-sided cubes at jittered
+/// heights: thousands of non-coplanar faces, so one shot of order 3 takes long.
+fn cluttered_scene(k: u32) -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let wall = b.material([0.8; 3], [0.0; 3], false);
+    let lamp = b.material([0.8; 3], [1.0; 3], false);
+    let block = b.material([0.7; 3], [0.0; 3], true);
+    let size = 10.0;
+    b.inward_box(
+        [lamp, wall, wall, wall, wall, wall],
+        DVec3::ZERO,
+        DVec3::splat(size),
+        1,
+    );
+    let step = size / f64::from(k + 1);
+    for i in 0..k {
+        for j in 0..k {
+            let h = 0.5 + 0.37 * f64::from((i * 7 + j * 13) % 11);
+            let min = DVec3::new(step * f64::from(i + 1), step * f64::from(j + 1), h);
+            let s = step * 0.4;
+            let (x, y, z) = (DVec3::X * s, DVec3::Y * s, DVec3::Z * s);
+            b.quad(block, min, y, z, 1);
+            b.quad(block, min + x, y, z, 1);
+            b.quad(block, min, z, x, 1);
+            b.quad(block, min + y, z, x, 1);
+            b.quad(block, min, x, y, 1);
+            b.quad(block, min + z, x, y, 1);
+        }
+    }
+    b.to_glb()
+}
+
+/// Every limit is a named setting, and a refusal names it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn limits_are_named_settings_and_refusals_name_them() {
+    let mut config = ServiceConfig::new(data_dir("limits"));
+    config.max_memory_bytes = 10_000;
+    let base = start(config).await;
+    let client = client();
+    let response = submit(
+        &client,
+        &base,
+        "order=3",
+        "model/gltf-binary",
+        small_scene(0.5),
+    )
+    .await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(error["code"], "memory_limit");
+    let message = error["message"].as_str().unwrap();
+    assert!(message.contains("--max-memory-bytes"), "{message}");
+    assert!(message.contains("10000 bytes"), "{message}");
+
+    let mut config = ServiceConfig::new(data_dir("limits-seconds"));
+    config.max_job_seconds = Some(1);
+    let base = start(config).await;
+    // A job asking for more is capped; one asking for nothing gets the cap.
+    let capped = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=30",
+        never_converging_scene(),
+    )
+    .await;
+    assert_eq!(capped["params"]["max_seconds"], 1.0);
+    let id = capped["id"].as_str().unwrap();
+    let started = Instant::now();
+    let done = wait_for(&client, &base, id, "succeeded", Duration::from_secs(30)).await;
+    assert_eq!(done["stop_reason"], "time_budget");
+    assert!(started.elapsed() < Duration::from_secs(20));
+    let free = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    assert_eq!(free["params"]["max_seconds"], 1.0);
+    let shorter = submit_ok(&client, &base, "order=1&max_seconds=0.5", small_scene(0.5)).await;
+    assert_eq!(shorter["params"]["max_seconds"], 0.5);
+}
+
+/// DELETE of a running job on a large scene: `cancelled` within 2 s even mid-shot.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_running_job_on_a_large_scene_is_cancelled_within_two_seconds() {
+    let base = start(ServiceConfig::new(data_dir("cancel-large"))).await;
+    let client = client();
+    let job = submit_ok(
+        &client,
+        &base,
+        "order=3&tolerance=1e-6&target_unshot=1e-6&max_seconds=120",
+        cluttered_scene(24),
+    )
+    .await;
+    let id = job["id"].as_str().unwrap().to_string();
+    wait_for(&client, &base, &id, "running", Duration::from_secs(60)).await;
+    // Into the first shot (the emitter's direct shot over ~14 000 faces, longer than 2 s here).
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let before = get_job(&client, &base, &id).await;
+    println!("before cancel: {}", before["progress"]);
+    assert_eq!(
+        before["progress"]["iterations"], 0,
+        "the cancel must arrive during the first shot"
+    );
+    let response = client
+        .delete(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let asked = Instant::now();
+    let end = wait_for(&client, &base, &id, "cancelled", Duration::from_secs(10)).await;
+    let latency = asked.elapsed();
+    println!("cancelled after {latency:?}: {}", end["progress"]);
+    assert!(latency < Duration::from_secs(2), "took {latency:?}");
+    assert_eq!(end["stop_reason"], "cancelled");
+}
+
+/// A finished job deleted goes with its files; `--retain-jobs` deletes the oldest beyond N.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn deleting_and_retention_remove_files() {
+    let dir = data_dir("retain");
+    let mut config = ServiceConfig::new(&dir);
+    config.retain_jobs = Some(2);
+    let base = start(config).await;
+    let client = client();
+    let mut ids = Vec::new();
+    for _ in 0..3 {
+        let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+        let id = job["id"].as_str().unwrap().to_string();
+        wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+        ids.push(id);
+    }
+    let jobs = dir.join("jobs");
+    // Retention runs just after the third job ends: the first goes, files and all.
+    let waited = Instant::now();
+    loop {
+        let first = client
+            .get(format!("{base}/v1/jobs/{}", ids[0]))
+            .send()
+            .await
+            .unwrap();
+        if first.status() == StatusCode::NOT_FOUND {
+            error_of(first, StatusCode::NOT_FOUND).await;
+            break;
+        }
+        assert!(
+            waited.elapsed() < Duration::from_secs(5),
+            "the oldest job stays"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+    assert!(!jobs.join(&ids[0]).exists());
+    assert!(jobs.join(&ids[1]).join("result.json").is_file());
+
+    let response = client
+        .delete(format!("{base}/v1/jobs/{}", ids[1]))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NO_CONTENT);
+    assert!(!jobs.join(&ids[1]).exists(), "deleted with its files");
+    let again = client
+        .delete(format!("{base}/v1/jobs/{}", ids[1]))
+        .send()
+        .await
+        .unwrap();
+    error_of(again, StatusCode::NOT_FOUND).await;
+    assert!(jobs.join(&ids[2]).join("lightmap.exr").is_file());
+    assert!(std::fs::read_dir(dir.join("trash"))
+        .unwrap()
+        .next()
+        .is_none());
+}
+
+/// A `multipart/form-data` body from (name, file name, content type, bytes) parts.
+fn multipart(parts: &[(&str, &str, &str, &[u8])]) -> (String, Vec<u8>) {
+    let boundary = "wavrad-test-boundary-7d1f";
+    let mut body = Vec::new();
+    for (name, file, content_type, bytes) in parts {
+        body.extend_from_slice(
+            format!(
+                "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"; \
+                 filename=\"{file}\"\r\nContent-Type: {content_type}\r\n\r\n"
+            )
+            .as_bytes(),
+        );
+        body.extend_from_slice(bytes);
+        body.extend_from_slice(b"\r\n");
+    }
+    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
+    (format!("multipart/form-data; boundary={boundary}"), body)
+}
+
+/// A .gltf with an external buffer is solved when the buffer is uploaded as a part named by its
+/// URI; without it, or without a `scene` part, the upload is refused with what to fix.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_multipart_upload_resolves_external_files_by_name() {
+    let base = start(ServiceConfig::new(data_dir("multipart"))).await;
+    let client = client();
+    let (mut root, bin) = one_triangle_gltf(TRIANGLE, [0, 1, 2]);
+    root["buffers"][0]["uri"] = json!("geometry/tri.bin");
+    let gltf = serde_json::to_vec(&root).unwrap();
+
+    let (content_type, body) = multipart(&[
+        ("scene", "tri.gltf", "model/gltf+json", &gltf),
+        (
+            "geometry/tri.bin",
+            "tri.bin",
+            "application/octet-stream",
+            &bin,
+        ),
+    ]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let job: Value = response.json().await.unwrap();
+    let id = job["id"].as_str().unwrap();
+    let done = wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    assert_eq!(done["state"], "succeeded");
+
+    let (content_type, body) = multipart(&[("scene", "tri.gltf", "model/gltf+json", &gltf)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert!(
+        error["message"]
+            .as_str()
+            .unwrap()
+            .contains("geometry/tri.bin"),
+        "{error}"
+    );
+
+    let (content_type, body) =
+        multipart(&[("tri.bin", "tri.bin", "application/octet-stream", &bin)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    assert_eq!(error["code"], "bad_multipart");
+    assert!(error["message"].as_str().unwrap().contains("'scene'"));
+}
+
+/// A retried POST with the same `Idempotency-Key` gets the job the first one created, also when
+/// the retries race; a malformed key is a 400.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idempotency_key_returns_the_job_it_created() {
+    let base = start(ServiceConfig::new(data_dir("idempotency"))).await;
+    let client = client();
+    let post = |key: &'static str| {
+        client
+            .post(format!("{base}/v1/jobs?order=1"))
+            .header("content-type", "model/gltf-binary")
+            .header("idempotency-key", key)
+            .body(small_scene(0.5))
+            .send()
+    };
+    let first = post("build-42").await.unwrap();
+    assert_eq!(first.status(), StatusCode::ACCEPTED);
+    assert!(first.headers().get("idempotent-replayed").is_none());
+    let first: Value = first.json().await.unwrap();
+    let again = post("build-42").await.unwrap();
+    assert_eq!(again.status(), StatusCode::ACCEPTED);
+    assert_eq!(again.headers()["idempotent-replayed"], "true");
+    let again: Value = again.json().await.unwrap();
+    assert_eq!(again["id"], first["id"]);
+
+    // Two retries in flight at once still make one job.
+    let (a, b) = tokio::join!(post("build-43"), post("build-43"));
+    let a: Value = a.unwrap().json().await.unwrap();
+    let b: Value = b.unwrap().json().await.unwrap();
+    assert_eq!(a["id"], b["id"]);
+    assert_ne!(a["id"], first["id"]);
+
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 2);
+
+    let bad = client
+        .post(format!("{base}/v1/jobs?order=1"))
+        .header("content-type", "model/gltf-binary")
+        .header("idempotency-key", "x".repeat(300))
+        .body(small_scene(0.5))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(
+        error_of(bad, StatusCode::BAD_REQUEST).await["code"],
+        "bad_idempotency_key"
+    );
+}
+
+/// While a converging solve runs, its progress carries an ETA fitted on the unshot decay.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_running_job_reports_an_eta() {
+    let base = start(ServiceConfig::new(data_dir("eta"))).await;
+    let client = client();
+    let job = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-3",
+        cluttered_scene(5),
+    )
+    .await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let start = Instant::now();
+    let mut seen = None;
+    loop {
+        let j = get_job(&client, &base, &id).await;
+        let p = &j["progress"];
+        if j["state"] == "running" && p["iterations"].as_u64().unwrap() >= 4 {
+            if let Some(eta) = p["eta_seconds"].as_f64() {
+                seen = Some((eta, p.clone()));
+                break;
+            }
+        }
+        if j["state"] != "running" && j["state"] != "queued" {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(60));
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let (eta, progress) = seen.expect("an ETA while running");
+    println!("eta {eta} s at {progress}");
+    assert!(eta.is_finite() && eta >= 0.0);
+    let done = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(120)).await;
+    println!("finished at {}", done["progress"]);
+    assert!(done["progress"]["eta_seconds"].is_null() || done["progress"]["eta_seconds"] == 0.0);
+}
+
+/// Reads server-sent events until the stream closes: (event, data) pairs.
+async fn read_events(mut response: reqwest::Response) -> Vec<(String, Value)> {
+    let mut text = String::new();
+    while let Some(chunk) = tokio::time::timeout(Duration::from_secs(60), response.chunk())
+        .await
+        .expect("the stream moves")
+        .unwrap()
+    {
+        text.push_str(&String::from_utf8_lossy(&chunk));
+    }
+    let mut events = Vec::new();
+    for block in text.split("\n\n") {
+        let mut event = None;
+        let mut data = String::new();
+        for line in block.lines() {
+            if let Some(e) = line.strip_prefix("event:") {
+                event = Some(e.trim().to_string());
+            } else if let Some(d) = line.strip_prefix("data:") {
+                data.push_str(d.trim_start());
+            }
+        }
+        if let Some(event) = event {
+            events.push((event, serde_json::from_str(&data).unwrap()));
+        }
+    }
+    events
+}
+
+/// The event stream shows progress at each shot, then `done` with the same job polling shows; a
+/// late client gets one progress and done.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn events_stream_progress_then_done() {
+    let base = start(ServiceConfig::new(data_dir("events"))).await;
+    let client = client();
+    let job = submit_ok(&client, &base, "order=1", cluttered_scene(3)).await;
+    let id = job["id"].as_str().unwrap().to_string();
+    let response = client
+        .get(format!("{base}/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .starts_with("text/event-stream"));
+    let events = read_events(response).await;
+    let (last, done) = events.last().expect("events");
+    assert_eq!(last, "done");
+    assert_eq!(done["state"], "succeeded");
+    let progress: Vec<&Value> = events
+        .iter()
+        .filter(|(e, _)| e == "progress")
+        .map(|(_, d)| d)
+        .collect();
+    assert_eq!(
+        progress.len() + 1,
+        events.len(),
+        "only progress before done"
+    );
+    assert!(
+        progress.len() >= 3,
+        "progress at the shots: {}",
+        progress.len()
+    );
+    let shots: Vec<u64> = progress
+        .iter()
+        .map(|p| p["iterations"].as_u64().unwrap())
+        .collect();
+    assert!(shots.windows(2).all(|w| w[0] <= w[1]), "{shots:?}");
+    assert_eq!(
+        *done,
+        get_job(&client, &base, &id).await,
+        "same state as polling"
+    );
+
+    let late = client
+        .get(format!("{base}/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    let events = read_events(late).await;
+    let names: Vec<&str> = events.iter().map(|(e, _)| e.as_str()).collect();
+    assert_eq!(names, ["progress", "done"]);
+    assert_eq!(events[0].1, done["progress"]);
+    let missing = client
+        .get(format!("{base}/v1/jobs/0000000000000000/events"))
+        .send()
+        .await
+        .unwrap();
+    error_of(missing, StatusCode::NOT_FOUND).await;
+}
+
+/// With a token every /v1 route needs it; /healthz and /metrics stay open.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn bearer_token_guards_every_v1_route() {
+    let mut config = ServiceConfig::new(data_dir("auth"));
+    config.api_token = Some("s3cret-token".into());
+    let base = start(config).await;
+    let client = client();
+    for path in [
+        "/v1/jobs",
+        "/v1/openapi.json",
+        "/v1/jobs/0000000000000000",
+        "/v1/nope",
+    ] {
+        let response = client.get(format!("{base}{path}")).send().await.unwrap();
+        assert_eq!(response.headers()["www-authenticate"], "Bearer");
+        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
+        assert_eq!(error["code"], "unauthorized", "{path}");
+        assert!(error["message"].as_str().unwrap().contains("Bearer"));
+        let wrong = client
+            .get(format!("{base}{path}"))
+            .bearer_auth("s3cret-tokeN")
+            .send()
+            .await
+            .unwrap();
+        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+    }
+    let post = client
+        .post(format!("{base}/v1/jobs?order=1"))
+        .header("content-type", "model/gltf-binary")
+        .body(small_scene(0.5))
+        .send()
+        .await
+        .unwrap();
+    error_of(post, StatusCode::UNAUTHORIZED).await;
+    let ok = client
+        .get(format!("{base}/v1/jobs"))
+        .bearer_auth("s3cret-token")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(ok.status(), StatusCode::OK);
+    for open in ["/healthz", "/metrics"] {
+        let r = client.get(format!("{base}{open}")).send().await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK, "{open}");
+    }
+}
+
+/// `/metrics` is Prometheus text, every series `wavrad_*`, counting what happened.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn metrics_count_jobs_and_solves() {
+    let base = start(ServiceConfig::new(data_dir("metrics"))).await;
+    let client = client();
+    let job = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let id = job["id"].as_str().unwrap();
+    wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    // The counters are updated just after the state: poll briefly.
+    let start = Instant::now();
+    let text = loop {
+        let r = client.get(format!("{base}/metrics")).send().await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK);
+        assert!(r.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/plain"));
+        let text = r.text().await.unwrap();
+        if text.contains("\nwavrad_solves_total 1\n") || start.elapsed() > Duration::from_secs(5) {
+            break text;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    };
+    let value = |name: &str| -> f64 {
+        text.lines()
+            .find_map(|l| l.strip_prefix(name)?.strip_prefix(' ')?.parse().ok())
+            .unwrap_or_else(|| panic!("{name} in\n{text}"))
+    };
+    for line in text.lines().filter(|l| !l.is_empty()) {
+        let name = line
+            .strip_prefix("# HELP ")
+            .or_else(|| line.strip_prefix("# TYPE "))
+            .unwrap_or(line);
+        assert!(name.starts_with("wavrad_"), "{line}");
+    }
+    assert_eq!(value("wavrad_jobs{state=\"succeeded\"}"), 1.0);
+    assert_eq!(value("wavrad_jobs{state=\"queued\"}"), 0.0);
+    assert_eq!(value("wavrad_queue_depth"), 0.0);
+    assert_eq!(value("wavrad_queue_capacity"), 64.0);
+    assert_eq!(value("wavrad_solves_total"), 1.0);
+    assert!(value("wavrad_shots_total") > 0.0);
+    assert!(value("wavrad_rays_total") > 0.0);
+    assert!(value("wavrad_elements_total") > 0.0);
+    assert!(value("wavrad_solve_seconds_total") > 0.0);
+}
+
+/// Every file of `tests/data/malformed/` (written by its `make.py`: truncated, wrong magic, huge
+/// counts, cyclic node graphs, NaN, missing buffers, data URIs lying about their size, ...) is
+/// refused with a 4xx and a message, and the server keeps serving.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn malformed_files_get_4xx_and_the_server_stays_up() {
+    let base = start(ServiceConfig::new(data_dir("malformed"))).await;
+    let client = client();
+    let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/malformed"));
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e != "py"))
+        .collect();
+    files.sort();
+    assert!(files.len() >= 25, "the corpus is there: {}", files.len());
+    for path in files {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let content_type = match path.extension().and_then(|e| e.to_str()) {
+            Some("gltf") => "model/gltf+json",
+            _ => "model/gltf-binary",
+        };
+        let bytes = std::fs::read(&path).unwrap();
+        let response = submit(&client, &base, "order=1", content_type, bytes).await;
+        let status = response.status();
+        assert!(status.is_client_error(), "{name}: {status}");
+        let body: Value = response
+            .json()
+            .await
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let message = body["error"]["message"].as_str().unwrap_or("");
+        assert!(message.len() > 10, "{name}: {body}");
+        assert!(body["error"]["code"].is_string(), "{name}: {body}");
+        println!("{name}: {status} {}: {message}", body["error"]["code"]);
+        let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+        assert_eq!(health.status(), StatusCode::OK, "after {name}");
+    }
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list, json!({"jobs": []}), "no job was created");
+}
+
+/// The rarer answers are JSON errors too: 503 when `--max-in-flight` requests are being handled,
+/// 408 when a request outlives `--request-timeout-seconds`, 500 when the store cannot be written.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn busy_timeout_and_internal_errors_are_json() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let dir = data_dir("rare");
+    let mut config = ServiceConfig::new(&dir);
+    config.max_in_flight = 1;
+    config.request_timeout = Duration::from_secs(1);
+    let base = start(config).await;
+    let client = client();
+    let addr = base.trim_start_matches("http://").to_string();
+
+    // A slow upload holds the only request slot: it declares 1000 bytes and sends 10.
+    let mut slow = tokio::net::TcpStream::connect(&addr).await.unwrap();
+    let head = format!(
+        "POST /v1/jobs?order=1 HTTP/1.1\r\nHost: {addr}\r\nContent-Type: model/gltf-binary\r\n\
+         Content-Length: 1000\r\nConnection: close\r\n\r\nglTF\x02\0\0\0\0\0"
+    );
+    slow.write_all(head.as_bytes()).await.unwrap();
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    let busy = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert!(busy.headers().contains_key("retry-after"));
+    assert_eq!(
+        error_of(busy, StatusCode::SERVICE_UNAVAILABLE).await["code"],
+        "server_busy"
+    );
+
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(10), slow.read_to_end(&mut answer))
+        .await
+        .expect("the slow request is answered")
+        .unwrap();
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
+    let body: Value =
+        serde_json::from_str(&answer[answer.find("\r\n\r\n").unwrap() + 4..]).unwrap();
+    assert_eq!(body["error"]["code"], "request_timeout");
+
+    // The store's jobs directory turns into a file: storing a job fails, the server does not.
+    std::fs::remove_dir_all(dir.join("jobs")).unwrap();
+    std::fs::write(dir.join("jobs"), b"not a directory").unwrap();
+    let response = submit(
+        &client,
+        &base,
+        "order=1",
+        "model/gltf-binary",
+        small_scene(0.5),
+    )
+    .await;
+    let error = error_of(response, StatusCode::INTERNAL_SERVER_ERROR).await;
+    assert_eq!(error["code"], "internal_error");
+    assert!(error["message"].as_str().unwrap().contains("server log"));
+    let health = client.get(format!("{base}/healthz")).send().await.unwrap();
+    assert_eq!(health.status(), StatusCode::OK);
 }

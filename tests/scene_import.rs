@@ -321,3 +321,24 @@ fn cli_solve_writes_the_contract_outputs() {
     assert!(texels.iter().any(|t| t[3] == 1.0) && texels.iter().any(|t| t[0] > 0.0));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Fuzzing regressions (tests/data/malformed/fuzz_*): each is refused with a reason of its own,
+/// not by the importer's panic guard ("the glTF parser failed").
+#[test]
+fn fuzz_crashes_are_refused_with_a_reason() {
+    let cases = [
+        (
+            "fuzz_position_accessor_out_of_range.gltf",
+            "accessor index out of bounds",
+        ),
+        ("fuzz_accessor_count_zero.glb", "count must be at least 1"),
+    ];
+    for (file, expected) in cases {
+        let path = format!("{}/tests/data/malformed/{file}", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(&path).unwrap();
+        let e = load_scene(&bytes, &ExternalFiles::Refuse, 1000).unwrap_err();
+        let m = message(&e);
+        assert!(m.contains(expected), "{file}: {m}");
+        assert!(!m.contains("parser failed"), "{file}: {m}");
+    }
+}

@@ -64,7 +64,12 @@ pub(crate) fn load_buffers(
                 });
                 buffers.push(Vec::new());
             }
-            Ok(d) => buffers.push(d),
+            Ok(mut d) => {
+                // The buffer is `byteLength` bytes: bytes past it (GLB chunk padding, a data URI
+                // longer than declared) are not part of it, so views cannot reach them.
+                d.truncate(declared as usize);
+                buffers.push(d)
+            }
             Err(message) => {
                 problems.push(Problem { place, message });
                 buffers.push(Vec::new());

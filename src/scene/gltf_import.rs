@@ -99,13 +99,87 @@ fn check_container(bytes: &[u8]) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// Every accessor index of a primitive (attributes, indices, morph targets) is in range.
+fn check_accessor_indices(root: &gltf::json::Root) -> Result<(), SceneError> {
+    let count = root.accessors.len();
+    let mut bad = Vec::new();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let place = format!("meshes[{m}].primitives[{p}]");
+            for (semantic, index) in &primitive.attributes {
+                if index.value() >= count {
+                    bad.push(format!("{place}.attributes.{semantic:?}"));
+                }
+            }
+            if primitive.indices.is_some_and(|i| i.value() >= count) {
+                bad.push(format!("{place}.indices"));
+            }
+            for (t, target) in primitive.targets.iter().flatten().enumerate() {
+                let indices = [&target.positions, &target.normals, &target.tangents];
+                if indices
+                    .iter()
+                    .any(|i| i.is_some_and(|i| i.value() >= count))
+                {
+                    bad.push(format!("{place}.targets[{t}]"));
+                }
+            }
+        }
+    }
+    if !bad.is_empty() {
+        return Err(SceneError::Unreadable(format!(
+            "invalid glTF: {}: accessor index out of bounds (the file has {count} accessor(s))",
+            bad.join(", ")
+        )));
+    }
+    // gltf's readers compute `count - 1` and assume a stride of at least one element (a panic in
+    // checked builds, found by fuzzing): the spec's own rules, checked here first.
+    use gltf::json::validation::Checked;
+    for (a, accessor) in root.accessors.iter().enumerate() {
+        if accessor.count.0 == 0 || accessor.sparse.as_ref().is_some_and(|s| s.count.0 == 0) {
+            bad.push(format!("accessors[{a}]: count must be at least 1"));
+        }
+        let (Checked::Valid(component), Checked::Valid(kind)) =
+            (&accessor.component_type, &accessor.type_)
+        else {
+            continue;
+        };
+        let element = component.0.size() * kind.multiplicity();
+        let stride = accessor
+            .buffer_view
+            .and_then(|v| root.buffer_views.get(v.value()))
+            .and_then(|v| v.byte_stride);
+        if let Some(stride) = stride {
+            if stride.0 < element {
+                bad.push(format!(
+                    "accessors[{a}]: its bufferView's byteStride {} is smaller than one element ({element} bytes)",
+                    stride.0
+                ));
+            }
+        }
+    }
+    if bad.is_empty() {
+        return Ok(());
+    }
+    Err(SceneError::Unreadable(format!(
+        "invalid glTF: {}",
+        bad.join("; ")
+    )))
+}
+
 fn load_scene_unchecked(
     bytes: &[u8],
     external: &ExternalFiles,
     max_triangles: usize,
 ) -> Result<Scene, SceneError> {
-    let gltf::Gltf { document, blob } =
-        gltf::Gltf::from_slice(bytes).map_err(|e| SceneError::Unreadable(e.to_string()))?;
+    // Parsed without validation first: gltf-json's validation indexes `accessors` with a
+    // primitive's POSITION index unchecked (a panic on a bad index, found by fuzzing), so the
+    // primitives' accessor indices are checked before it runs.
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| SceneError::Unreadable(e.to_string()))?;
+    let root = document.into_json();
+    check_accessor_indices(&root)?;
+    let document =
+        gltf::Document::from_json(root).map_err(|e| SceneError::Unreadable(e.to_string()))?;
     let buffers = load_buffers(&document, blob, external)?;
     let mut warnings = Vec::new();
     let mut problems = Vec::new();

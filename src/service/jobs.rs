@@ -96,7 +96,7 @@ pub struct JobStatus {
 }
 
 impl JobStatus {
-    fn queued() -> Self {
+    pub fn queued() -> Self {
         JobStatus {
             state: JobState::Queued,
             progress: ProgressView::default(),
@@ -146,6 +146,43 @@ pub struct JobRecord {
     pub error: Option<ErrorBody>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop_reason: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub idempotency_key: Option<String>,
+}
+
+/// Seconds until the unshot ratio reaches `target`, from a least-squares line through recent
+/// (seconds, ln ratio) points: progressive shooting decays the unshot power roughly
+/// exponentially. None until the fit has three points and a falling slope. Capped by the time
+/// budget when there is one.
+pub fn estimate_eta(points: &[(f64, f64)], target: f64, max_seconds: Option<f64>) -> Option<f64> {
+    let &(t_now, ln_now) = points.last()?;
+    let remaining_budget = max_seconds.map(|m| (m - t_now).max(0.0));
+    let target_ln = target.ln();
+    if ln_now <= target_ln {
+        return Some(0.0);
+    }
+    if points.len() < 3 {
+        return remaining_budget;
+    }
+    let n = points.len() as f64;
+    let mean_t = points.iter().map(|p| p.0).sum::<f64>() / n;
+    let mean_y = points.iter().map(|p| p.1).sum::<f64>() / n;
+    let (mut stt, mut sty) = (0.0, 0.0);
+    for &(t, y) in points {
+        stt += (t - mean_t) * (t - mean_t);
+        sty += (t - mean_t) * (y - mean_y);
+    }
+    let eta = if stt > 0.0 && sty < 0.0 {
+        let slope = sty / stt;
+        let eta = (target_ln - ln_now) / slope;
+        eta.is_finite().then_some(eta.max(0.0))
+    } else {
+        None
+    };
+    match (eta, remaining_budget) {
+        (Some(e), Some(b)) => Some(e.min(b)),
+        (e, b) => e.or(b),
+    }
 }
 
 /// One job.
@@ -156,21 +193,47 @@ pub struct Job {
     /// Order of acceptance (ties of `created` in the listing).
     pub seq: u64,
     pub params: JobParams,
+    /// The `Idempotency-Key` of the POST that created it.
+    pub idempotency_key: Option<String>,
+    /// The flag the solver checks (between shots and inside them): stop now.
+    stop: AtomicBool,
+    /// Set with `stop` when a client cancelled; `stop` alone means the server is shutting down
+    /// and the job goes back to the queue.
     cancel: AtomicBool,
     status: watch::Sender<JobStatus>,
+    /// Recent (seconds, ln unshot ratio) points of the running solve, for `eta_seconds`.
+    history: Mutex<VecDeque<(f64, f64)>>,
     /// Serialises writes of this job's state.json (the last writer writes the latest state).
     persist: Mutex<()>,
 }
 
+/// Points of the unshot-ratio history the ETA is fitted on.
+const ETA_POINTS: usize = 16;
+
 impl Job {
     pub fn new(id: JobId, created: SystemTime, seq: u64, params: JobParams) -> Job {
+        Job::restore(id, created, seq, params, JobStatus::queued(), None)
+    }
+
+    /// A job with a given status (a job read back from the store, or a keyed submission).
+    pub fn restore(
+        id: JobId,
+        created: SystemTime,
+        seq: u64,
+        params: JobParams,
+        status: JobStatus,
+        idempotency_key: Option<String>,
+    ) -> Job {
         Job {
             id,
             created,
             seq,
             params,
+            idempotency_key,
+            stop: AtomicBool::new(false),
             cancel: AtomicBool::new(false),
-            status: watch::Sender::new(JobStatus::queued()),
+            status: watch::Sender::new(status),
+            history: Mutex::new(VecDeque::with_capacity(ETA_POINTS)),
             persist: Mutex::new(()),
         }
     }
@@ -188,13 +251,20 @@ impl Job {
         self.status.subscribe()
     }
 
-    /// The flag the solver checks between shots.
+    /// The flag the solver checks between shots and inside them.
     pub fn cancel_flag(&self) -> &AtomicBool {
-        &self.cancel
+        &self.stop
     }
 
+    /// A client cancelled: the job ends `cancelled`.
     pub fn request_cancel(&self) {
         self.cancel.store(true, Ordering::SeqCst);
+        self.stop.store(true, Ordering::SeqCst);
+    }
+
+    /// The server is shutting down: the solve stops and the job goes back to `queued`.
+    pub fn request_requeue(&self) {
+        self.stop.store(true, Ordering::SeqCst);
     }
 
     pub fn cancel_requested(&self) -> bool {
@@ -206,8 +276,26 @@ impl Job {
         self.status.send_if_modified(change)
     }
 
-    /// Records the progress of a shot.
-    pub fn set_progress(&self, progress: ProgressView) {
+    /// Records the progress of a shot, with `eta_seconds` fitted on the recent decay of the unshot
+    /// ratio.
+    pub fn set_progress(&self, mut progress: ProgressView) {
+        {
+            let mut history = lock(&self.history);
+            if progress.iterations == 0 {
+                history.clear();
+            }
+            if progress.unshot_ratio > 0.0 && progress.unshot_ratio.is_finite() {
+                if history.len() == ETA_POINTS {
+                    history.pop_front();
+                }
+                history.push_back((progress.seconds, progress.unshot_ratio.ln()));
+            }
+            progress.eta_seconds = estimate_eta(
+                history.make_contiguous(),
+                self.params.target_unshot,
+                self.params.max_seconds,
+            );
+        }
         self.status.send_modify(|s| s.progress = progress);
     }
 
@@ -241,6 +329,7 @@ impl Job {
             progress: status.progress,
             error: status.error.clone(),
             stop_reason: status.stop_reason.clone(),
+            idempotency_key: self.idempotency_key.clone(),
         }
     }
 
@@ -264,6 +353,8 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 struct Board {
     jobs: HashMap<String, Arc<Job>>,
     queue: VecDeque<Arc<Job>>,
+    /// Jobs by the `Idempotency-Key` that created them.
+    keys: HashMap<String, Arc<Job>>,
     next_seq: u64,
 }
 
@@ -323,11 +414,74 @@ impl JobBoard {
             if b.queue.len() >= self.max_queued {
                 return Err(job);
             }
-            b.jobs.insert(job.id.to_string(), job.clone());
+            Self::insert(&mut b, &job);
             b.queue.push_back(job);
         }
         self.wake.notify_one();
         Ok(())
+    }
+
+    /// Adds a job read back from the store at start: queued again when `requeue` (even beyond
+    /// `max_queued`: an accepted job is never dropped), listed as it was otherwise.
+    pub fn restore(&self, job: Arc<Job>, requeue: bool) {
+        {
+            let mut b = lock(&self.board);
+            Self::insert(&mut b, &job);
+            if requeue {
+                b.queue.push_back(job);
+            }
+        }
+        if requeue {
+            self.wake.notify_one();
+        }
+    }
+
+    /// Puts a job that was stopped for a shutdown back at the head of the queue.
+    pub fn requeue_front(&self, job: Arc<Job>) {
+        lock(&self.board).queue.push_front(job);
+        self.wake.notify_one();
+    }
+
+    fn insert(b: &mut Board, job: &Arc<Job>) {
+        b.jobs.insert(job.id.to_string(), job.clone());
+        if let Some(key) = &job.idempotency_key {
+            b.keys.insert(key.clone(), job.clone());
+        }
+    }
+
+    /// The job created by the POST with this `Idempotency-Key`.
+    pub fn by_key(&self, key: &str) -> Option<Arc<Job>> {
+        lock(&self.board).keys.get(key).cloned()
+    }
+
+    /// Finished jobs, oldest first (for `--retain-jobs`).
+    pub fn finished_oldest_first(&self) -> Vec<Arc<Job>> {
+        let mut jobs: Vec<Arc<Job>> = lock(&self.board)
+            .jobs
+            .values()
+            .filter(|j| j.state().is_finished())
+            .cloned()
+            .collect();
+        jobs.sort_by_key(|j| (j.created, j.seq));
+        jobs
+    }
+
+    /// Number of jobs in each state.
+    pub fn count_by_state(&self) -> [(JobState, usize); 5] {
+        let mut counts = [
+            (JobState::Queued, 0),
+            (JobState::Running, 0),
+            (JobState::Succeeded, 0),
+            (JobState::Failed, 0),
+            (JobState::Cancelled, 0),
+        ];
+        for job in lock(&self.board).jobs.values() {
+            let state = job.state();
+            if let Some(c) = counts.iter_mut().find(|c| c.0 == state) {
+                c.1 += 1;
+            }
+        }
+        counts
     }
 
     /// Takes `job` out of the queue; false when it was not waiting (a runner has it, or it ended).
@@ -338,11 +492,15 @@ impl JobBoard {
         b.queue.len() != before
     }
 
-    /// Removes a job from the board (and the queue).
+    /// Removes a job from the board (and the queue, and the idempotency keys).
     pub fn forget(&self, id: &str) -> Option<Arc<Job>> {
         let mut b = lock(&self.board);
         b.queue.retain(|j| j.id.as_str() != id);
-        b.jobs.remove(id)
+        let job = b.jobs.remove(id)?;
+        if let Some(key) = &job.idempotency_key {
+            b.keys.remove(key);
+        }
+        Some(job)
     }
 
     /// The next queued job, waiting until there is one.
@@ -390,6 +548,21 @@ mod tests {
         assert!(board.has_room());
         assert!(board.forget(a.id.as_str()).is_some());
         assert_eq!(board.list().len(), 1);
+    }
+
+    #[test]
+    fn eta_follows_an_exponential_decay() {
+        // ratio = exp(-t): from ln r = -2 at t = 2 to ln(1e-3) = -6.9 takes 4.9 s more.
+        let points: Vec<(f64, f64)> = (0..=4)
+            .map(|i| (i as f64 * 0.5, -(i as f64) * 0.5))
+            .collect();
+        let eta = estimate_eta(&points, 1e-3, None).unwrap();
+        assert!((eta - (1e3f64.ln() - 2.0)).abs() < 1e-9, "{eta}");
+        assert_eq!(estimate_eta(&points, 1e-3, Some(3.0)), Some(1.0));
+        assert_eq!(estimate_eta(&points[..2], 1e-3, None), None);
+        let flat = [(0.0, -1.0), (1.0, -1.0), (2.0, -1.0)];
+        assert_eq!(estimate_eta(&flat, 1e-3, None), None);
+        assert_eq!(estimate_eta(&[(1.0, -8.0)], 1e-3, None), Some(0.0));
     }
 
     #[test]

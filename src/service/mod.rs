@@ -1,21 +1,27 @@
 //! `wavrad serve`: the HTTP job service (CONTRACT "HTTP API (v1)", DESIGN.md section 8).
 //!
-//! - [`app`] builds the router from an [`AppState`]; [`Server`] binds and serves it; [`serve`] does
-//!   both and stops on Ctrl-C or SIGTERM.
+//! - [`api_routes`] is the table of every route; [`app`] builds the router from it (a test checks
+//!   it against `api/openapi.yaml`, served at `/v1/openapi.json`); [`Server`] binds and serves;
+//!   [`serve`] does both and stops on Ctrl-C or SIGTERM.
 //! - Errors: one type, [`ApiError`], rendered as the CONTRACT's error JSON; extractors are wrapped
 //!   ([`extract`]) and a last middleware rewrites any other error response into that shape.
+//!   Middleware: optional bearer token on `/v1`, in-flight limit (503), timeout (408).
 //! - Jobs ([`jobs`]): a bounded queue feeding `workers` runners ([`runner`]) that solve on a
-//!   dedicated rayon pool under `catch_unwind`; each job's state lives in a `watch` channel that
-//!   polling (and, later, server-sent events) read.
+//!   dedicated, niced rayon pool under `catch_unwind`; each job's state lives in a `watch` channel
+//!   that polling and server-sent events both read.
 //! - Store ([`store`]): one directory per job under `data_dir/jobs/`, every write atomic; the job's
-//!   files are on disk before its 202 is sent.
+//!   files are on disk before its 202 is sent. [`recovery`] reads them back at start.
+//! - Shutdown: stop accepting, stop running solves at their next check and persist them as
+//!   `queued`, end event streams, then return.
+//! - [`metrics`]: `/metrics` in Prometheus text.
 //!
-//! Not yet: resuming jobs after a restart, server-sent events, multipart uploads, idempotency
-//! keys, bearer-token auth, `/metrics`, job retention.
+//! Not yet: `POST /v1/jobs/{id}/probes` and the dashboard page `GET /`.
 
 pub mod error;
 pub mod extract;
 pub mod jobs;
+pub mod metrics;
+pub mod recovery;
 pub mod routes;
 pub mod runner;
 pub mod store;
@@ -23,14 +29,15 @@ pub mod time;
 
 pub use error::ApiError;
 pub use jobs::{Job, JobBoard, JobState, JobView, ProgressView};
+pub use recovery::Recovered;
 pub use store::{FileStore, JobId};
 
 use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::handler::Handler;
-use axum::http::StatusCode;
+use axum::http::{Method, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{delete, get, post, MethodRouter};
 use axum::Router;
 use std::future::Future;
 use std::io;
@@ -42,7 +49,7 @@ use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::timeout::TimeoutLayer;
-use tower_http::trace::TraceLayer;
+use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
 
 /// Data directory when none is given (CONTRACT "Names").
 pub const DEFAULT_DATA_DIR: &str = "./wavrad-data";
@@ -55,17 +62,23 @@ pub const DEFAULT_MAX_BODY_BYTES: usize = 256 << 20;
 /// Five million triangles keep a solve's memory and time within one machine's reach.
 pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 
+/// 16 GiB: the estimated solver memory of one job (see [`crate::job::estimated_memory_bytes`])
+/// beyond which a submission is refused with 422.
+pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
+
 /// Seconds a client is told to wait (`Retry-After`) when the queue or the server is full.
 pub const RETRY_AFTER_SECONDS: u64 = 10;
 /// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
-pub const REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
+pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
+/// Longest a shutdown waits for running solves to stop and be persisted as queued.
+pub const SHUTDOWN_SOLVE_WAIT: Duration = Duration::from_secs(30);
 /// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
-pub const MAX_IN_FLIGHT_REQUESTS: usize = 1024;
+pub const DEFAULT_MAX_IN_FLIGHT: usize = 1024;
 /// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
 pub const MAX_CONCURRENT_UPLOADS: usize = 4;
 
 /// Settings of the service (CONTRACT `wavrad serve` options).
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Clone, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct ServiceConfig {
     /// Root of the job store (`data_dir/jobs/{id}/`).
@@ -78,6 +91,37 @@ pub struct ServiceConfig {
     pub max_body_bytes: usize,
     /// Largest scene, in triangles; larger is refused with 422.
     pub max_triangles: usize,
+    /// Largest estimated solver memory of one job, in bytes; larger is refused with 422.
+    pub max_memory_bytes: u64,
+    /// Longest solve, in seconds: a job's `max_seconds` is capped to it (and set to it when the
+    /// job gives none). None: no cap.
+    pub max_job_seconds: Option<u64>,
+    /// Finished jobs kept; beyond it the oldest are deleted with their files. None: all kept.
+    pub retain_jobs: Option<usize>,
+    /// When set, every `/v1` route needs `Authorization: Bearer <token>` (401 otherwise).
+    pub api_token: Option<String>,
+    /// Requests handled at once; one more is refused with 503.
+    pub max_in_flight: usize,
+    /// Longest a request may take, upload included; beyond it 408.
+    pub request_timeout: Duration,
+}
+
+impl std::fmt::Debug for ServiceConfig {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ServiceConfig")
+            .field("data_dir", &self.data_dir)
+            .field("workers", &self.workers)
+            .field("max_queued", &self.max_queued)
+            .field("max_body_bytes", &self.max_body_bytes)
+            .field("max_triangles", &self.max_triangles)
+            .field("max_memory_bytes", &self.max_memory_bytes)
+            .field("max_job_seconds", &self.max_job_seconds)
+            .field("retain_jobs", &self.retain_jobs)
+            .field("api_token", &self.api_token.as_ref().map(|_| "<set>"))
+            .field("max_in_flight", &self.max_in_flight)
+            .field("request_timeout", &self.request_timeout)
+            .finish()
+    }
 }
 
 impl ServiceConfig {
@@ -89,6 +133,12 @@ impl ServiceConfig {
             max_queued: DEFAULT_MAX_QUEUED,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             max_triangles: DEFAULT_MAX_TRIANGLES,
+            max_memory_bytes: DEFAULT_MAX_MEMORY_BYTES,
+            max_job_seconds: None,
+            retain_jobs: None,
+            api_token: None,
+            max_in_flight: DEFAULT_MAX_IN_FLIGHT,
+            request_timeout: DEFAULT_REQUEST_TIMEOUT,
         }
     }
 
@@ -105,6 +155,29 @@ impl ServiceConfig {
         }
         if self.max_triangles == 0 {
             return Err("--max-triangles must be at least 1".into());
+        }
+        if self.max_memory_bytes == 0 {
+            return Err("--max-memory-bytes must be at least 1".into());
+        }
+        if self.max_in_flight == 0 {
+            return Err("--max-in-flight must be at least 1".into());
+        }
+        if self.request_timeout.is_zero() {
+            return Err("--request-timeout-seconds must be at least 1".into());
+        }
+        if self.max_job_seconds == Some(0) {
+            return Err("--max-job-seconds must be at least 1".into());
+        }
+        if self
+            .api_token
+            .as_deref()
+            .is_some_and(|t| t.is_empty() || !t.bytes().all(|c| c.is_ascii_graphic()))
+        {
+            return Err(
+                "--api-token must be non-empty printable ASCII without spaces (it is sent in an \
+                 HTTP header)"
+                    .into(),
+            );
         }
         Ok(())
     }
@@ -128,6 +201,13 @@ struct Shared {
     jobs: JobBoard,
     upload_permits: Semaphore,
     in_flight: Arc<Semaphore>,
+    /// Held while a POST with an `Idempotency-Key` stores its job.
+    keyed_submissions: tokio::sync::Mutex<()>,
+    metrics: metrics::Metrics,
+    /// True once the server is shutting down (server-sent event streams end on it).
+    shutdown: tokio::sync::watch::Sender<bool>,
+    /// Solves in progress on the pool (a shutdown waits for them to be persisted).
+    active_solves: std::sync::atomic::AtomicUsize,
 }
 
 impl AppState {
@@ -143,17 +223,25 @@ impl AppState {
             ));
         }
         let store = FileStore::open(&config.data_dir)?;
+        let jobs = JobBoard::new(config.max_queued);
+        recovery::recover(&store, &jobs)?;
         let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
+        let max_in_flight = config.max_in_flight;
         let state = AppState {
             inner: Arc::new(Shared {
-                jobs: JobBoard::new(config.max_queued),
+                jobs,
                 config,
                 store,
                 upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
-                in_flight: Arc::new(Semaphore::new(MAX_IN_FLIGHT_REQUESTS)),
+                in_flight: Arc::new(Semaphore::new(max_in_flight)),
+                keyed_submissions: tokio::sync::Mutex::new(()),
+                metrics: metrics::Metrics::default(),
+                shutdown: tokio::sync::watch::Sender::new(false),
+                active_solves: std::sync::atomic::AtomicUsize::new(0),
             }),
         };
+        runner::enforce_retention(&state);
         runner::spawn_runners(&state, pool, workers);
         Ok(state)
     }
@@ -170,6 +258,66 @@ impl AppState {
         &self.inner.jobs
     }
 
+    pub fn metrics(&self) -> &metrics::Metrics {
+        &self.inner.metrics
+    }
+
+    /// Whether the server is shutting down.
+    pub fn is_shutting_down(&self) -> bool {
+        *self.inner.shutdown.borrow()
+    }
+
+    /// A receiver that sees the start of the shutdown.
+    pub fn shutdown_signal(&self) -> tokio::sync::watch::Receiver<bool> {
+        self.inner.shutdown.subscribe()
+    }
+
+    /// Starts the shutdown: runners take no more jobs, running solves stop at their next check
+    /// and go back to `queued` (persisted), event streams end.
+    pub fn begin_shutdown(&self) {
+        self.inner.shutdown.send_replace(true);
+        for job in self.jobs().list() {
+            if job.state() == JobState::Running {
+                job.request_requeue();
+            }
+        }
+    }
+
+    pub(crate) fn solve_started(&self) {
+        self.inner
+            .active_solves
+            .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    pub(crate) fn solve_ended(&self) {
+        self.inner
+            .active_solves
+            .fetch_sub(1, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Waits until no solve is in progress, at most `limit`; true when none is.
+    pub async fn wait_for_solves(&self, limit: Duration) -> bool {
+        let start = std::time::Instant::now();
+        loop {
+            if self
+                .inner
+                .active_solves
+                .load(std::sync::atomic::Ordering::SeqCst)
+                == 0
+            {
+                return true;
+            }
+            if start.elapsed() >= limit {
+                return false;
+            }
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+
+    pub(crate) fn keyed_submissions(&self) -> &tokio::sync::Mutex<()> {
+        &self.inner.keyed_submissions
+    }
+
     pub(crate) fn upload_permits(&self) -> &Semaphore {
         &self.inner.upload_permits
     }
@@ -183,42 +331,180 @@ impl std::fmt::Debug for AppState {
     }
 }
 
-/// The service's router: every route of CONTRACT "HTTP API (v1)" built so far, with limits,
-/// timeouts, panic catching and tracing.
+/// One route of the router: path (axum syntax, which is also OpenAPI's), method, the paths of
+/// `api/openapi.yaml` it answers (a catch-all route answers several), and its handler.
+pub struct ApiRoute {
+    pub path: &'static str,
+    pub method: Method,
+    pub documented: &'static [&'static str],
+    pub handler: MethodRouter<AppState>,
+}
+
+/// Every route the service answers. [`app`] is built from this table, and a test checks it
+/// against the OpenAPI document both ways.
+pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
+    fn route(
+        path: &'static str,
+        method: Method,
+        documented: &'static [&'static str],
+        handler: MethodRouter<AppState>,
+    ) -> ApiRoute {
+        ApiRoute {
+            path,
+            method,
+            documented,
+            handler,
+        }
+    }
+    vec![
+        route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
+        route("/metrics", Method::GET, &["/metrics"], get(routes::metrics)),
+        route(
+            "/v1/openapi.json",
+            Method::GET,
+            &["/v1/openapi.json"],
+            get(routes::openapi),
+        ),
+        route(
+            "/v1/jobs",
+            Method::GET,
+            &["/v1/jobs"],
+            get(routes::list_jobs),
+        ),
+        route(
+            "/v1/jobs",
+            Method::POST,
+            &["/v1/jobs"],
+            post(routes::create_job.layer(DefaultBodyLimit::max(max_body))),
+        ),
+        route(
+            "/v1/jobs/{id}",
+            Method::GET,
+            &["/v1/jobs/{id}"],
+            get(routes::get_job),
+        ),
+        route(
+            "/v1/jobs/{id}",
+            Method::DELETE,
+            &["/v1/jobs/{id}"],
+            delete(routes::delete_job),
+        ),
+        route(
+            "/v1/jobs/{id}/events",
+            Method::GET,
+            &["/v1/jobs/{id}/events"],
+            get(routes::job_events),
+        ),
+        route(
+            "/v1/jobs/{id}/result",
+            Method::GET,
+            &["/v1/jobs/{id}/result"],
+            get(routes::get_result),
+        ),
+        route(
+            "/v1/jobs/{id}/convergence",
+            Method::GET,
+            &["/v1/jobs/{id}/convergence"],
+            get(routes::get_convergence),
+        ),
+        route(
+            "/v1/jobs/{id}/{file}",
+            Method::GET,
+            &[
+                "/v1/jobs/{id}/lightmap.exr",
+                "/v1/jobs/{id}/lightmap-{n}.exr",
+                "/v1/jobs/{id}/preview.png",
+                "/v1/jobs/{id}/scene.glb",
+            ],
+            get(routes::get_file),
+        ),
+    ]
+}
+
+/// The service's router: every route of [`api_routes`] with limits, timeouts, panic catching and
+/// tracing.
 pub fn app(state: AppState) -> Router {
     let max_body = state.config().max_body_bytes;
-    Router::new()
-        .route("/healthz", get(routes::healthz))
-        .route(
-            "/v1/jobs",
-            get(routes::list_jobs).post(routes::create_job.layer(DefaultBodyLimit::max(max_body))),
-        )
-        .route(
-            "/v1/jobs/{id}",
-            get(routes::get_job).delete(routes::delete_job),
-        )
-        .route("/v1/jobs/{id}/result", get(routes::get_result))
-        .route("/v1/jobs/{id}/convergence", get(routes::get_convergence))
-        .route("/v1/jobs/{id}/{file}", get(routes::get_file))
+    let mut router = Router::new();
+    for r in api_routes(max_body) {
+        // Routes on one path merge their methods.
+        router = router.route(r.path, r.handler);
+    }
+    router
         .fallback(error::route_not_found)
         .method_not_allowed_fallback(error::method_not_allowed)
         // Innermost first: the timeout's empty 408 and every other non-JSON error pass through the
         // normaliser; a panic anywhere inside becomes a JSON 500.
         .layer(TimeoutLayer::with_status_code(
             StatusCode::REQUEST_TIMEOUT,
-            REQUEST_TIMEOUT,
+            state.config().request_timeout,
         ))
+        .layer(middleware::from_fn_with_state(state.clone(), require_token))
         .layer(middleware::from_fn_with_state(
             state.clone(),
             limit_in_flight,
         ))
         .layer(middleware::map_response(error::normalize_error_response))
         .layer(CatchPanicLayer::custom(error::panic_response))
-        .layer(TraceLayer::new_for_http())
+        // A span per request at INFO (method, path), so what a handler logs carries its request;
+        // the per-response line is DEBUG so polling floods no log. 5xx are logged at ERROR.
+        .layer(
+            TraceLayer::new_for_http()
+                .make_span_with(DefaultMakeSpan::new().level(tracing::Level::INFO))
+                .on_response(DefaultOnResponse::new().level(tracing::Level::DEBUG)),
+        )
         .with_state(state)
 }
 
-/// Refuses a request with 503 when `MAX_IN_FLIGHT_REQUESTS` are already being handled.
+/// With `--api-token`, every `/v1` route needs `Authorization: Bearer <token>` (401 otherwise);
+/// `/healthz` and `/metrics` stay open.
+async fn require_token(State(state): State<AppState>, request: Request, next: Next) -> Response {
+    let Some(token) = state.config().api_token.as_deref() else {
+        return next.run(request).await;
+    };
+    let path = request.uri().path();
+    if !(path == "/v1" || path.starts_with("/v1/")) {
+        return next.run(request).await;
+    }
+    let given = request
+        .headers()
+        .get(axum::http::header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| {
+            let (scheme, rest) = v.trim().split_once(' ')?;
+            scheme.eq_ignore_ascii_case("bearer").then(|| rest.trim())
+        });
+    match given {
+        Some(given) if constant_time_eq(given.as_bytes(), token.as_bytes()) => {
+            next.run(request).await
+        }
+        _ => {
+            let message = if given.is_some() {
+                "the bearer token is not valid for this server"
+            } else {
+                "this server needs 'Authorization: Bearer <token>' on every /v1 route (the token \
+                 is the server's --api-token / WAVRAD_API_TOKEN)"
+            };
+            let mut response =
+                ApiError::new(StatusCode::UNAUTHORIZED, "unauthorized", message).into_response();
+            response.headers_mut().insert(
+                axum::http::header::WWW_AUTHENTICATE,
+                axum::http::HeaderValue::from_static("Bearer"),
+            );
+            response
+        }
+    }
+}
+
+/// Compares two byte strings in time independent of where they differ.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    if a.len() != b.len() {
+        return false;
+    }
+    a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Refuses a request with 503 when `max_in_flight` requests are already being handled.
 async fn limit_in_flight(State(state): State<AppState>, request: Request, next: Next) -> Response {
     let Ok(_permit) = state.inner.in_flight.clone().try_acquire_owned() else {
         return ApiError {
@@ -270,14 +556,23 @@ impl Server {
         self.run_until(shutdown_signal()).await
     }
 
-    /// Serves until `shutdown` completes, then finishes the requests in progress.
+    /// Serves until `shutdown` completes; then stops accepting, stops running solves at their
+    /// next check and persists them as `queued`, finishes the requests in progress, and returns.
     pub async fn run_until(
         self,
         shutdown: impl Future<Output = ()> + Send + 'static,
     ) -> io::Result<()> {
-        axum::serve(self.listener, app(self.state))
-            .with_graceful_shutdown(shutdown)
+        let state = self.state.clone();
+        let signal = async move {
+            shutdown.await;
+            state.begin_shutdown();
+        };
+        axum::serve(self.listener, app(self.state.clone()))
+            .with_graceful_shutdown(signal)
             .await?;
+        if !self.state.wait_for_solves(SHUTDOWN_SOLVE_WAIT).await {
+            tracing::warn!("a solve did not stop in time; its job is re-queued at the next start");
+        }
         tracing::info!("wavrad serve stopped");
         Ok(())
     }

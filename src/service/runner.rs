@@ -6,7 +6,7 @@
 //! priority than the request threads, so polling stays responsive while a solve uses every core.
 
 use super::error::{panic_message, ErrorBody};
-use super::jobs::{Job, JobState, ProgressView};
+use super::jobs::{Job, JobState, JobStatus, ProgressView};
 use super::AppState;
 use crate::job::{run_job, JobError, JobOutcome};
 use crate::scene::{load_scene, ExternalFiles, SceneError};
@@ -57,6 +57,10 @@ pub(crate) fn spawn_runners(state: &AppState, pool: Arc<rayon::ThreadPool>, work
 async fn runner(state: AppState, pool: Arc<rayon::ThreadPool>, index: usize) {
     loop {
         let job = state.jobs().next().await;
+        if state.is_shutting_down() {
+            state.jobs().requeue_front(job);
+            return;
+        }
         tracing::debug!(runner = index, job = %job.id, "runner took a job");
         let (done_tx, done_rx) = oneshot::channel::<()>();
         let task_state = state.clone();
@@ -89,9 +93,15 @@ async fn runner(state: AppState, pool: Arc<rayon::ThreadPool>, index: usize) {
     }
 }
 
-/// Runs one job to its end on the calling (pool) thread: queued -> running -> finished, with
-/// state.json written at each step.
+/// Runs one job to its end on the calling (pool) thread: queued -> running -> finished (or back
+/// to queued when the server shuts down), with state.json written at each step.
 fn process(state: &AppState, job: &Arc<Job>) {
+    state.solve_started();
+    process_inner(state, job);
+    state.solve_ended();
+}
+
+fn process_inner(state: &AppState, job: &Arc<Job>) {
     let store = state.store();
     let start = job.update(|s| {
         if s.state != JobState::Queued {
@@ -112,11 +122,27 @@ fn process(state: &AppState, job: &Arc<Job>) {
         tracing::info!(job = %job.id, "cancelled before it started");
         return;
     }
+    if state.is_shutting_down() {
+        job.request_requeue();
+    }
     let span = tracing::info_span!("job", id = %job.id);
     let _enter = span.enter();
     tracing::info!("solving");
     let max_triangles = state.config().max_triangles;
     let finished = guarded(|| solve(state, job, max_triangles));
+    record_metrics(state, job, &finished);
+    if let Finished::Solved(outcome) = &finished {
+        if outcome.stop_reason == StopReason::Cancelled && !job.cancel_requested() {
+            // Stopped for a shutdown: back to the queue, to start over at the next start.
+            job.update(|s| {
+                *s = JobStatus::queued();
+                true
+            });
+            job.persist(store);
+            tracing::info!("stopped for shutdown; queued again");
+            return;
+        }
+    }
     job.update(|s| {
         match finished {
             Finished::Solved(outcome) => {
@@ -139,6 +165,44 @@ fn process(state: &AppState, job: &Arc<Job>) {
     });
     job.persist(store);
     tracing::info!(state = job.state().as_str(), "job finished");
+    enforce_retention(state);
+}
+
+fn record_metrics(state: &AppState, job: &Job, finished: &Finished) {
+    let Finished::Solved(outcome) = finished else {
+        return;
+    };
+    let stats = outcome.result.get("stats");
+    let number = |key: &str| stats.and_then(|s| s.get(key)).and_then(|v| v.as_u64());
+    let progress = job.status().progress;
+    let seconds = stats
+        .and_then(|s| s.get("seconds"))
+        .and_then(|v| v.as_f64())
+        .unwrap_or(progress.seconds);
+    state.metrics().record_solve(
+        seconds,
+        number("iterations").unwrap_or(progress.iterations),
+        number("rays").unwrap_or(0),
+        number("elements").unwrap_or(progress.elements),
+    );
+}
+
+/// `--retain-jobs N`: deletes the oldest finished jobs, with their files, beyond N (blocking).
+pub(crate) fn enforce_retention(state: &AppState) {
+    let Some(keep) = state.config().retain_jobs else {
+        return;
+    };
+    let finished = state.jobs().finished_oldest_first();
+    let excess = finished.len().saturating_sub(keep);
+    for job in finished.into_iter().take(excess) {
+        match state.store().delete_job(&job.id) {
+            Ok(()) => {
+                state.jobs().forget(job.id.as_str());
+                tracing::info!(job = %job.id, "deleted by --retain-jobs");
+            }
+            Err(e) => tracing::error!(job = %job.id, error = %e, "could not delete an old job"),
+        }
+    }
 }
 
 enum Finished {
@@ -171,7 +235,14 @@ fn solve(state: &AppState, job: &Job, max_triangles: usize) -> Result<JobOutcome
     let store = state.store();
     let path = store.scene_path(&job.id)?;
     let bytes = std::fs::read(&path)?;
-    let scene = load_scene(&bytes, &ExternalFiles::Refuse, max_triangles)?;
+    let parts = store.read_parts(&job.id)?;
+    let external = if parts.is_empty() {
+        ExternalFiles::Refuse
+    } else {
+        ExternalFiles::Named(parts)
+    };
+    let scene = load_scene(&bytes, &external, max_triangles)?;
+    drop(external);
     drop(bytes);
     let dir = store.job_dir(&job.id);
     run_job(&scene, &job.params, &dir, job.cancel_flag(), &mut |p| {

@@ -15,8 +15,9 @@
 //! would implement the same operations.
 
 use crate::output::write_atomic;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::hash_map::RandomState;
+use std::collections::{BTreeMap, HashMap};
 use std::hash::BuildHasher;
 use std::io;
 use std::path::{Path, PathBuf};
@@ -30,6 +31,8 @@ pub const SCENE_GLTF: &str = "scene.gltf";
 pub const PARAMS_FILE: &str = "params.json";
 /// The job's state record.
 pub const STATE_FILE: &str = "state.json";
+/// The manifest of a multipart upload's extra files: `[{"uri": "...", "file": "part-0"}, ...]`.
+pub const PARTS_FILE: &str = "parts.json";
 /// The result document written by a successful solve.
 pub const RESULT_FILE: &str = "result.json";
 /// The per-shot convergence table.
@@ -49,6 +52,12 @@ impl JobId {
         let ms = super::time::unix_millis(created) & 0xfff_ffff_ffff;
         let random = RandomState::new().hash_one(ms) & 0xf_ffff;
         JobId(format!("{ms:011x}{random:05x}"))
+    }
+
+    /// The id if `s` has the shape of one (16 lowercase hex digits), so it is a safe file name.
+    pub fn parse(s: &str) -> Option<JobId> {
+        (s.len() == 16 && s.bytes().all(|c| matches!(c, b'0'..=b'9' | b'a'..=b'f')))
+            .then(|| JobId(s.to_string()))
     }
 
     pub fn as_str(&self) -> &str {
@@ -138,19 +147,93 @@ impl FileStore {
         Err(io::Error::other("could not find an unused job id"))
     }
 
-    /// Writes the files of a new job into its (existing) directory: scene, parameters, state.
+    /// Writes the files of a new job into its (existing) directory: scene, the files it
+    /// references (multipart uploads), parameters, and last the state (the commit point).
     pub fn write_new_job(
         &self,
         id: &JobId,
         scene: &[u8],
+        parts: &BTreeMap<String, Vec<u8>>,
         params: &impl Serialize,
         state: &impl Serialize,
     ) -> io::Result<()> {
         let dir = self.job_dir(id);
         write_atomic(&dir.join(SceneFormat::sniff(scene).file_name()), scene)?;
+        if !parts.is_empty() {
+            let mut manifest = Vec::with_capacity(parts.len());
+            for (n, (uri, bytes)) in parts.iter().enumerate() {
+                let file = format!("part-{n}");
+                write_atomic(&dir.join(&file), bytes)?;
+                manifest.push(PartEntry {
+                    uri: uri.clone(),
+                    file,
+                });
+            }
+            write_atomic(&dir.join(PARTS_FILE), &to_json(&manifest)?)?;
+        }
         write_atomic(&dir.join(PARAMS_FILE), &to_json(params)?)?;
         write_atomic(&dir.join(STATE_FILE), &to_json(state)?)?;
         sync_dir(&dir)
+    }
+
+    /// The files a multipart upload sent with its scene, by URI (empty for other uploads).
+    pub fn read_parts(&self, id: &JobId) -> io::Result<HashMap<String, Vec<u8>>> {
+        let dir = self.job_dir(id);
+        let manifest = match std::fs::read(dir.join(PARTS_FILE)) {
+            Ok(bytes) => bytes,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(HashMap::new()),
+            Err(e) => return Err(e),
+        };
+        let entries: Vec<PartEntry> = serde_json::from_slice(&manifest).map_err(|e| {
+            io::Error::new(io::ErrorKind::InvalidData, format!("{PARTS_FILE}: {e}"))
+        })?;
+        let mut parts = HashMap::with_capacity(entries.len());
+        for entry in entries {
+            // Only names this store writes: never a path out of the job directory.
+            let valid = entry
+                .file
+                .strip_prefix("part-")
+                .is_some_and(|n| !n.is_empty() && n.bytes().all(|c| c.is_ascii_digit()));
+            if !valid {
+                return Err(io::Error::new(
+                    io::ErrorKind::InvalidData,
+                    format!("{PARTS_FILE} names '{}', not a part file", entry.file),
+                ));
+            }
+            parts.insert(entry.uri, std::fs::read(dir.join(&entry.file))?);
+        }
+        Ok(parts)
+    }
+
+    /// The ids of every job directory, oldest first (ids sort by creation). Entries that are not
+    /// job directories are skipped.
+    pub fn list_job_ids(&self) -> io::Result<Vec<JobId>> {
+        let mut ids = Vec::new();
+        for entry in std::fs::read_dir(&self.jobs)? {
+            let entry = entry?;
+            if !entry.file_type()?.is_dir() {
+                continue;
+            }
+            match entry.file_name().to_str().and_then(JobId::parse) {
+                Some(id) => ids.push(id),
+                None => tracing::warn!(
+                    path = %entry.path().display(),
+                    "not a job directory; left alone"
+                ),
+            }
+        }
+        ids.sort();
+        Ok(ids)
+    }
+
+    /// Reads a small file of job `id` (`params.json`, `state.json`).
+    pub fn read_file(&self, id: &JobId, name: &str) -> io::Result<Vec<u8>> {
+        std::fs::read(self.job_dir(id).join(name))
+    }
+
+    /// Whether job `id` has its committed state (`state.json`), i.e. was accepted.
+    pub fn is_committed(&self, id: &JobId) -> bool {
+        self.job_dir(id).join(STATE_FILE).is_file()
     }
 
     /// Rewrites `state.json` of job `id`.
@@ -206,6 +289,13 @@ impl FileStore {
     }
 }
 
+/// One entry of `parts.json`.
+#[derive(Debug, Serialize, Deserialize)]
+struct PartEntry {
+    uri: String,
+    file: String,
+}
+
 fn to_json(value: &impl Serialize) -> io::Result<Vec<u8>> {
     serde_json::to_vec_pretty(value).map_err(io::Error::other)
 }
@@ -234,6 +324,44 @@ mod tests {
         assert_eq!(a.as_str().len(), 16);
         assert!(a.as_str().bytes().all(|c| c.is_ascii_hexdigit()));
         assert!(a < b);
+    }
+
+    #[test]
+    fn parse_accepts_only_ids() {
+        assert!(JobId::parse("0123456789abcdef").is_some());
+        assert!(JobId::parse("0123456789ABCDEF").is_none());
+        assert!(JobId::parse("../../etc/passwd").is_none());
+        assert!(JobId::parse("0123456789abcde").is_none());
+    }
+
+    #[test]
+    fn parts_round_trip_and_uncommitted_dirs_are_visible() {
+        let dir =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp-store-unit");
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = FileStore::open(&dir).unwrap();
+        let id = store
+            .create_job_dir(super::super::time::from_unix_millis(1_700_000_000_000))
+            .unwrap();
+        assert!(!store.is_committed(&id));
+        let mut parts = BTreeMap::new();
+        parts.insert("sub dir/b.bin".to_string(), vec![1u8, 2, 3]);
+        store
+            .write_new_job(
+                &id,
+                b"{}",
+                &parts,
+                &serde_json::json!({}),
+                &serde_json::json!({}),
+            )
+            .unwrap();
+        assert!(store.is_committed(&id));
+        let back = store.read_parts(&id).unwrap();
+        assert_eq!(back["sub dir/b.bin"], vec![1u8, 2, 3]);
+        assert_eq!(store.list_job_ids().unwrap(), vec![id.clone()]);
+        store.delete_job(&id).unwrap();
+        assert!(store.list_job_ids().unwrap().is_empty());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Writes the malformed glTF/GLB corpus of tests/http.rs (malformed_files_get_4xx_and_the_server_stays_up)
+and the fuzz seed corpus. Run from this directory: python3 make.py"""
+import base64, json, struct
+
+def bin48(nan=False, inf=False):
+    pos = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+    if nan:
+        pos[4] = float("nan")
+    if inf:
+        pos[0] = float("inf")
+    return struct.pack("<9f", *pos) + struct.pack("<3I", 0, 1, 2)
+
+def gltf(data=None, byte_length=48, count=3, idx_count=3, nodes=None, buffer_index=0,
+         uri="data", material=0, view_length=36):
+    data = bin48() if data is None else data
+    buf = {"byteLength": byte_length}
+    if uri == "data":
+        buf["uri"] = "data:application/octet-stream;base64," + base64.b64encode(data).decode()
+    elif uri is not None:
+        buf["uri"] = uri
+    return {
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": nodes or [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": material}]}],
+        "materials": [{"emissiveFactor": [1.0, 1.0, 1.0]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5125, "count": idx_count, "type": "SCALAR"},
+        ],
+        "bufferViews": [
+            {"buffer": buffer_index, "byteOffset": 0, "byteLength": view_length},
+            {"buffer": buffer_index, "byteOffset": 36, "byteLength": 12},
+        ],
+        "buffers": [buf],
+    }
+
+def glb(root, binary):
+    j = json.dumps(root).encode()
+    j += b" " * (-len(j) % 4)
+    binary += b"\0" * (-len(binary) % 4)
+    body = struct.pack("<I4s", len(j), b"JSON") + j + struct.pack("<I4s", len(binary), b"BIN\0") + binary
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+def write(name, content):
+    with open(name, "wb") as f:
+        f.write(content if isinstance(content, bytes) else json.dumps(content).encode())
+
+good_glb = glb(gltf(uri=None), bin48())
+write("truncated.glb", good_glb[: len(good_glb) // 2])
+write("truncated_header.glb", good_glb[:7])
+write("wrong_magic.glb", b"gLTF" + good_glb[4:])
+write("wrong_version.glb", good_glb[:4] + struct.pack("<I", 7) + good_glb[8:])
+write("length_lies.glb", good_glb[:8] + struct.pack("<I", 0x7FFFFFF0) + good_glb[12:])
+write("json_chunk_length_lies.glb", good_glb[:12] + struct.pack("<I", 0x7FFFFFF0) + good_glb[16:])
+write("empty.glb", b"")
+write("garbage.bin", bytes((i * 97 + 13) % 256 for i in range(300)))
+write("not_json.gltf", b"{\"asset\": {\"version\": \"2.0\"}, \"scenes\": [")
+write("json_array.gltf", b"[]")
+write("deeply_nested.gltf", b"[" * 5000 + b"]" * 5000)
+write("huge_accessor_count.gltf", gltf(count=4_000_000_000, idx_count=3_000_000_000))
+write("huge_buffer_byte_length.gltf", gltf(byte_length=10**15))
+write("data_uri_shorter_than_declared.gltf", gltf(byte_length=4096))
+write("data_uri_longer_than_declared.gltf", gltf(byte_length=8))
+write("bad_base64.gltf", {**gltf(), "buffers": [{"byteLength": 48, "uri": "data:application/octet-stream;base64,@@@notbase64@@@"}]})
+write("cyclic_nodes.gltf", gltf(nodes=[{"mesh": 0, "children": [1]}, {"children": [0]}]))
+write("self_child_node.gltf", gltf(nodes=[{"mesh": 0, "children": [0]}]))
+write("nan_positions.gltf", gltf(data=bin48(nan=True)))
+write("inf_positions.gltf", gltf(data=bin48(inf=True)))
+write("missing_buffer.gltf", gltf(buffer_index=7))
+write("no_buffers.gltf", {**gltf(), "buffers": []})
+write("buffer_without_uri.gltf", gltf(uri=None))
+write("external_uri.gltf", gltf(uri="../../../../etc/passwd"))
+write("http_uri.gltf", gltf(uri="http://127.0.0.1:1/x.bin"))
+write("view_beyond_buffer.gltf", gltf(view_length=4000))
+write("index_out_of_range.gltf", gltf(data=bin48()[:36] + struct.pack("<3I", 0, 1, 99)))
+write("material_out_of_range.gltf", gltf(material=42))
+write("no_emitter.gltf", {**gltf(), "materials": [{}]})
+write("nan_emission.gltf", {**gltf(), "materials": [{"emissiveFactor": [1.0, float("nan"), 1.0]}]})

@@ -1,0 +1,324 @@
+//! Durability over real process restarts: the `wavrad serve` binary is started on port 0, killed
+//! abruptly (SIGKILL) or stopped (SIGTERM), and started again on the same data directory.
+
+use glam::DVec3;
+use reqwest::{Client, StatusCode};
+use serde_json::Value;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use wavrad::scene::gltf_writer::SceneBuilder;
+
+fn data_dir(name: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("restart-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+/// A running `wavrad serve` process and its base URL.
+struct Service {
+    child: Child,
+    base: String,
+}
+
+impl Service {
+    /// Starts the binary on 127.0.0.1 port 0 and reads the bound address from its first stdout
+    /// line (`{"listening": "127.0.0.1:PORT"}`).
+    fn start(data: &Path, extra: &[&str]) -> Service {
+        Self::start_logging(data, extra, "warn", Stdio::inherit())
+    }
+
+    fn start_logging(data: &Path, extra: &[&str], level: &str, stderr: Stdio) -> Service {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_wavrad"))
+            .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
+            .arg(data)
+            .args(extra)
+            .env("RUST_LOG", level)
+            .stdout(Stdio::piped())
+            .stderr(stderr)
+            .spawn()
+            .expect("wavrad serve starts");
+        let stdout = child.stdout.take().unwrap();
+        let mut line = String::new();
+        BufReader::new(stdout).read_line(&mut line).unwrap();
+        let v: Value = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"));
+        let base = format!("http://{}", v["listening"].as_str().unwrap());
+        Service { child, base }
+    }
+
+    fn kill(mut self) {
+        self.child.kill().unwrap(); // SIGKILL: no chance to clean up
+        self.child.wait().unwrap();
+    }
+
+    /// SIGTERM, then waits for the process to exit; returns how long it took.
+    fn terminate(mut self) -> Duration {
+        let t = Instant::now();
+        // SAFETY: kill(2) with the pid of our own child.
+        let rc = unsafe { libc::kill(self.child.id() as libc::pid_t, libc::SIGTERM) };
+        assert_eq!(rc, 0);
+        let status = self.child.wait().unwrap();
+        assert!(status.success(), "clean exit after SIGTERM: {status}");
+        t.elapsed()
+    }
+}
+
+impl Drop for Service {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(30))
+        .build()
+        .unwrap()
+}
+
+fn box_scene(rho: f64, n: u32) -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let wall = b.material([rho; 3], [0.0; 3], false);
+    let lamp = b.material([rho; 3], [1.0; 3], false);
+    b.inward_box(
+        [lamp, wall, wall, wall, wall, wall],
+        DVec3::ZERO,
+        DVec3::ONE,
+        n,
+    );
+    b.to_glb()
+}
+
+async fn submit(client: &Client, base: &str, query: &str, glb: Vec<u8>) -> String {
+    submit_keyed(client, base, query, glb, None).await
+}
+
+async fn submit_keyed(
+    client: &Client,
+    base: &str,
+    query: &str,
+    glb: Vec<u8>,
+    key: Option<&str>,
+) -> String {
+    let mut request = client
+        .post(format!("{base}/v1/jobs?{query}"))
+        .header("content-type", "model/gltf-binary");
+    if let Some(key) = key {
+        request = request.header("idempotency-key", key);
+    }
+    let r = request.body(glb).send().await.unwrap();
+    assert_eq!(r.status(), StatusCode::ACCEPTED);
+    let job: Value = r.json().await.unwrap();
+    job["id"].as_str().unwrap().to_string()
+}
+
+async fn job(client: &Client, base: &str, id: &str) -> Value {
+    let r = client
+        .get(format!("{base}/v1/jobs/{id}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), StatusCode::OK, "job {id}");
+    r.json().await.unwrap()
+}
+
+async fn wait_until(
+    client: &Client,
+    base: &str,
+    id: &str,
+    timeout: Duration,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
+    let start = Instant::now();
+    loop {
+        let j = job(client, base, id).await;
+        if done(&j) {
+            return j;
+        }
+        assert!(start.elapsed() < timeout, "job {id} stuck: {j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}
+
+async fn bytes(client: &Client, url: String) -> Vec<u8> {
+    let r = client.get(&url).send().await.unwrap();
+    assert_eq!(r.status(), StatusCode::OK, "{url}");
+    r.bytes().await.unwrap().to_vec()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
+    let data = data_dir("kill");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+
+    // A solve that cannot converge (rho = 1) and stops on its 3 s budget.
+    let long = submit(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=3",
+        box_scene(1.0, 3),
+    )
+    .await;
+    // A second job waits behind it; its scene will be lost while the server is down.
+    let orphan = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+    let running = wait_until(&client, &base, &long, Duration::from_secs(20), |j| {
+        j["state"] == "running" && j["progress"]["iterations"].as_u64().unwrap() > 0
+    })
+    .await;
+    assert_eq!(running["state"], "running");
+    service.kill();
+
+    // While the server is down: the queued job's scene disappears, and a submission that was
+    // never committed (no state.json) is left behind.
+    let jobs = data.join("jobs");
+    std::fs::remove_file(jobs.join(&orphan).join("scene.glb")).unwrap();
+    let uncommitted = jobs.join("00000000001abcde");
+    std::fs::create_dir(&uncommitted).unwrap();
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let again = job(&client, &base, &long).await;
+    assert!(
+        again["state"] == "queued" || again["state"] == "running",
+        "the interrupted job is queued again: {again}"
+    );
+    let lost = job(&client, &base, &orphan).await;
+    assert_eq!(lost["state"], "failed", "{lost}");
+    assert_eq!(lost["error"]["code"], "unreadable_job");
+    assert!(lost["error"]["message"]
+        .as_str()
+        .unwrap()
+        .contains("scene is missing"));
+    assert!(!uncommitted.exists(), "uncommitted submission removed");
+
+    let done = wait_until(&client, &base, &long, Duration::from_secs(60), |j| {
+        j["state"] != "queued" && j["state"] != "running"
+    })
+    .await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["stop_reason"], "time_budget");
+    let result: Value =
+        serde_json::from_slice(&bytes(&client, format!("{base}/v1/jobs/{long}/result")).await)
+            .unwrap();
+    assert!(result["stats"]["iterations"].as_u64().unwrap() > 0);
+    drop(service);
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn finished_results_survive_a_restart() {
+    let data = data_dir("finished");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let id = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
+    let before = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    let result = bytes(&client, format!("{base}/v1/jobs/{id}/result")).await;
+    let exr = bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await;
+    service.kill();
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let after = job(&client, &base, &id).await;
+    assert_eq!(after, before, "the job is listed as it was");
+    assert_eq!(
+        bytes(&client, format!("{base}/v1/jobs/{id}/result")).await,
+        result
+    );
+    assert_eq!(
+        bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await,
+        exr
+    );
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
+    // The idempotency key survived too: a retry gets the same job.
+    let retried = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
+    assert_eq!(retried, id);
+    drop(service);
+}
+
+/// SIGTERM: the server stops accepting, the running job stops at its next check and is persisted
+/// as queued, the process exits 0; the next start runs the job to its end.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sigterm_requeues_the_running_job() {
+    let data = data_dir("sigterm");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let id = submit(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=3",
+        box_scene(1.0, 3),
+    )
+    .await;
+    wait_until(&client, &base, &id, Duration::from_secs(20), |j| {
+        j["state"] == "running"
+    })
+    .await;
+    let took = service.terminate();
+    assert!(took < Duration::from_secs(2), "shutdown took {took:?}");
+    let record: Value = serde_json::from_slice(
+        &std::fs::read(data.join("jobs").join(&id).join("state.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(record["state"], "queued", "{record}");
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let done = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    assert_eq!(done["stop_reason"], "time_budget");
+    drop(service);
+}
+
+/// `--log-format json`: every log line is a JSON object; what a request handler logs carries a
+/// `request` span (method, uri), what a solve logs a `job` span with the job's id.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn json_logs_carry_request_and_job_spans() {
+    let data = data_dir("json-logs");
+    std::fs::create_dir_all(&data).unwrap();
+    let log_path = data.join("server.log");
+    let log = std::fs::File::create(&log_path).unwrap();
+    let client = client();
+    let service = Service::start_logging(&data, &["--log-format", "json"], "info", log.into());
+    let base = service.base.clone();
+    let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+    wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+        j["state"] == "succeeded"
+    })
+    .await;
+    service.terminate();
+    let text = std::fs::read_to_string(&log_path).unwrap();
+    let lines: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{e}: {l}")))
+        .collect();
+    let accepted = lines
+        .iter()
+        .find(|l| l["fields"]["message"] == "job accepted")
+        .expect("the acceptance is logged");
+    assert_eq!(accepted["span"]["name"], "request", "{accepted}");
+    assert_eq!(accepted["span"]["method"], "POST");
+    let solved = lines
+        .iter()
+        .find(|l| l["fields"]["message"] == "job finished")
+        .expect("the end of the solve is logged");
+    assert_eq!(solved["span"]["name"], "job", "{solved}");
+    assert_eq!(solved["span"]["id"], id.as_str());
+}
