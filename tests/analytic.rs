@@ -80,8 +80,8 @@ fn parallel_unit_squares_receiver_mean_is_the_form_factor() {
         let mut area = 0.0;
         for (i, r) in sol.roots.iter().enumerate() {
             if r.material == recv {
-                sum += sol.mean_value(i)[0] * r.area_m2;
-                area += r.area_m2;
+                sum += sol.mean_value(i)[0] * r.face_area_m2;
+                area += r.face_area_m2;
             }
         }
         let mean = sum / area;
@@ -123,9 +123,9 @@ fn enclosure_balance(rho: f64, order: usize) {
     let mut sum_b = 0.0;
     let mut emitted = 0.0;
     for (i, r) in sol.roots.iter().enumerate() {
-        area += r.area_m2;
-        sum_b += sol.mean_radiosity(i)[0] * r.area_m2;
-        emitted += r.exitance[0] * r.area_m2;
+        area += r.face_area_m2;
+        sum_b += sol.mean_radiosity(i)[0] * r.face_area_m2;
+        emitted += r.exitance[0] * r.face_area_m2;
     }
     for pair in sol.convergence.windows(2) {
         assert!(
@@ -236,8 +236,8 @@ fn light_reaching_only_the_border_of_an_element_is_found() {
         let (mut got, mut area) = (0.0, 0.0);
         for (i, r) in sol.roots.iter().enumerate() {
             if r.material == slab {
-                got += sol.mean_value(i)[0] * r.area_m2;
-                area += r.area_m2;
+                got += sol.mean_value(i)[0] * r.face_area_m2;
+                area += r.face_area_m2;
             }
         }
         let got = got / area;

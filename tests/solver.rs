@@ -25,8 +25,8 @@ fn mean_radiance(sol: &Solution, material: u32) -> f64 {
     let (mut sum, mut area) = (0.0, 0.0);
     for (i, r) in sol.roots.iter().enumerate() {
         if r.material == material {
-            sum += sol.mean_value(i)[0] * r.area_m2;
-            area += r.area_m2;
+            sum += sol.mean_value(i)[0] * r.face_area_m2;
+            area += r.face_area_m2;
         }
     }
     sum / area

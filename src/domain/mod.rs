@@ -3,9 +3,11 @@
 //!
 //! A triangle or parallelogram face is one native root; any other ("extended") face gets an
 //! [`ExtendedDomain`]: its minimal-area enclosing parallelogram, which frames its lightmap, with
-//! the face as a polygon with holes in `(s, t)`. Until the solver works on extended domains (issue
-//! 5) such a face is solved as one triangle root per triangle of its triangulation (the paper's
-//! tessellated baseline) in both [`DomainMode`]s; its domain is kept in [`Domains::extended`].
+//! the face as a polygon with holes in `(s, t)`. In [`DomainMode::Extended`] such a face is one
+//! parallelogram root per side on that domain, carrying a [`FaceMask`] (the face inside it); in
+//! [`DomainMode::Tessellated`] (the paper's baseline, and the fallback for a face whose domain
+//! could not be built) it is one triangle root per triangle of its triangulation. Domains are kept
+//! in [`Domains::extended`] either way.
 //!
 //! A root's frame maps reference coordinates `(s, t)` to world space: `x(s,t) = origin + s*u + t*v`.
 //! For a [`Shape::Parallelogram`] `(s,t)` ranges over `[0,1]^2`; for a [`Shape::Triangle`] over
@@ -22,6 +24,7 @@
 pub mod coverage;
 pub mod extended;
 pub mod hull;
+pub mod mask;
 pub mod parallelogram;
 pub mod predicates;
 pub mod trapezoidal_map;
@@ -31,11 +34,13 @@ mod tests;
 
 pub use coverage::{Coverage, ElementStatus, StBox};
 pub use extended::{DomainError, ExtendedDomain};
+pub use mask::FaceMask;
 pub use trapezoidal_map::{Location, MapError, TrapezoidalMap};
 
 use crate::faces::{Face, FaceId, FaceKind, FaceSet};
 use crate::scene::{Rgb, Scene};
 use glam::{DVec2, DVec3};
+use std::sync::Arc;
 
 /// The reference shape of an element (and of each of its sub-elements).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -87,8 +92,14 @@ pub struct ElementRoot {
     pub frame: Frame,
     /// Unit normal of this side.
     pub normal: DVec3,
-    /// Area of the element (of its shape in world space), m^2.
+    /// Area of the element (of its shape in world space), m^2: for an extended root, the domain's.
     pub area_m2: f64,
+    /// Area of the face this root carries, m^2: `area_m2` for a native root, the face's own
+    /// area for an extended one (what emits, and what powers and means are counted over).
+    pub face_area_m2: f64,
+    /// An extended root (a parallelogram domain larger than its face): the face inside it.
+    /// `None` for native triangles and parallelograms, which their element fills.
+    pub mask: Option<FaceMask>,
     pub material: u32,
     pub rho: Rgb,
     /// Emitted radiosity E = pi * L_e on this side, W/m^2.
@@ -112,13 +123,17 @@ impl ElementRoot {
 }
 
 impl ElementRoot {
-    /// Locates world point `x` on this root: its reference coordinates clamped into the shape, the
-    /// distance of `x` from the root's plane, and the in-plane distance from the shape.
+    /// Locates world point `x` on this root: its reference coordinates clamped into the shape (for
+    /// an extended root, into the face), the distance of `x` from the root's plane, and the
+    /// in-plane distance from the shape (from the face).
     pub fn locate(&self, x: DVec3) -> (DVec2, f64, f64) {
         let f = &self.frame;
         let plane_distance = self.normal.dot(x - f.origin);
         let st = plane_coordinates(f, x - self.normal * plane_distance);
-        let inside = clamp_to_shape(self.shape, st);
+        let inside = match &self.mask {
+            Some(mask) if st.is_finite() => mask.closest_point(st),
+            _ => clamp_to_shape(self.shape, st),
+        };
         let outside = (f.point(inside) - f.point(st)).length();
         (inside, plane_distance.abs(), outside)
     }
@@ -153,7 +168,8 @@ pub fn clamp_to_shape(shape: Shape, st: DVec2) -> DVec2 {
 /// How faces that are neither triangles nor parallelograms are represented.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum DomainMode {
-    /// The paper's extended domains (built, but the solver tessellates such faces until issue 5).
+    /// The paper's extended domains: one parallelogram root per side of every extended face,
+    /// with the face as its [`FaceMask`].
     #[default]
     Extended,
     /// The paper's baseline: every such face is split into its triangles.
@@ -286,7 +302,6 @@ fn sided(frame: Frame, side: Side) -> Frame {
 /// the face's triangulation; every extended face's surface is framed by its extended domain's
 /// parallelogram, and the domain is kept in [`Domains::extended`].
 pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domains {
-    let _ = mode; // The solver does not use extended domains yet: both modes tessellate.
     let mut domains = Domains::default();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
@@ -296,6 +311,14 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
             FaceKind::Triangle | FaceKind::Parallelogram => None,
         };
         let (shape, frame) = face_frame(face, extended.as_ref());
+        // In extended mode an extended face is one root on its domain; the face area from its
+        // rings (what the mask's coverage integrates to) so powers and means agree with coverage.
+        let masked = match (&extended, mode) {
+            (Some(d), DomainMode::Extended) if d.face_area_m2() > 0.0 => {
+                Some((Arc::new(d.clone()), d.face_area_m2()))
+            }
+            _ => None,
+        };
         domains.extended.push(extended);
         let sides: &[Side] = if face.double_sided {
             &[Side::Front, Side::Back]
@@ -309,11 +332,15 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                 -face.normal
             };
             let first = domains.roots.len();
-            let mut push_root = |shape: Shape, frame: Frame| {
+            let mut push_root = |shape: Shape, frame: Frame, mask: Option<(FaceMask, f64)>| {
                 let frame = sided(frame, side);
                 let area = match shape {
                     Shape::Triangle => 0.5 * frame.cross().length(),
                     Shape::Parallelogram => frame.cross().length(),
+                };
+                let (mask, face_area) = match mask {
+                    Some((m, a)) => (Some(m), a),
+                    None => (None, area),
                 };
                 domains.roots.push(ElementRoot {
                     face: face.id,
@@ -322,14 +349,24 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                     frame,
                     normal,
                     area_m2: area,
+                    face_area_m2: face_area,
+                    mask,
                     material: face.material,
                     rho: material.rho,
                     exitance,
                 });
             };
-            match face.kind {
-                FaceKind::Triangle | FaceKind::Parallelogram => push_root(shape, frame),
-                FaceKind::Extended => {
+            match (face.kind, &masked) {
+                (FaceKind::Triangle | FaceKind::Parallelogram, _) => push_root(shape, frame, None),
+                (FaceKind::Extended, Some((domain, face_area))) => push_root(
+                    shape,
+                    frame,
+                    Some((
+                        FaceMask::new(domain.clone(), side == Side::Back),
+                        *face_area,
+                    )),
+                ),
+                (FaceKind::Extended, None) => {
                     for [a, b, c] in &face.triangulation {
                         push_root(
                             Shape::Triangle,
@@ -338,6 +375,7 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                                 u: *b - *a,
                                 v: *c - *a,
                             },
+                            None,
                         );
                     }
                 }

@@ -9,7 +9,7 @@
 pub mod atlas;
 pub mod probes;
 
-use crate::domain::{clamp_to_shape, plane_coordinates, Frame, Side, Surface};
+use crate::domain::{clamp_to_shape, plane_coordinates, Frame, Side, StBox, Surface};
 use crate::faces::FaceSet;
 use crate::job::JobParams;
 use crate::pipeline::Prepared;
@@ -190,7 +190,17 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
         for y in y0..y1 {
             for x in x0..x1 {
                 let (fx, fy) = (x as f64, y as f64);
-                let a = box_in_convex_area(fx, fx + 1.0, fy, fy + 1.0, &corners);
+                let a = match &root.mask {
+                    // An extended root: the face inside the texel, not the domain.
+                    Some(mask) => {
+                        let texel = StBox::new(
+                            DVec2::new((fx - g) / w, (fy - g) / h),
+                            DVec2::new((fx + 1.0 - g) / w, (fy + 1.0 - g) / h),
+                        );
+                        mask.coverage(texel).fraction(&texel)
+                    }
+                    None => box_in_convex_area(fx, fx + 1.0, fy, fy + 1.0, &corners),
+                };
                 if a <= 0.0 {
                     continue;
                 }
@@ -357,7 +367,7 @@ fn surface_mean(solution: &Solution, surface: &Surface) -> [f64; 3] {
     let mut sum = [0.0; 3];
     let mut area = 0.0;
     for i in surface.roots.clone() {
-        let a = solution.roots[i].area_m2;
+        let a = solution.roots[i].face_area_m2;
         let m = solution.mean_value(i);
         for c in 0..3 {
             sum[c] += a * m[c];

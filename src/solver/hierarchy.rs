@@ -8,6 +8,7 @@
 //!   function held by the leaves (push-pull consistency): `pull(children) == parent` for `h`, `hd`, `u`.
 
 use super::basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
+use super::cover::NodeCover;
 use crate::domain::Shape;
 use crate::scene::Rgb;
 use glam::DVec2;
@@ -44,6 +45,8 @@ pub struct Hierarchy {
     pub len: usize,
     /// Whether `dh` holds anything.
     pub touched: bool,
+    /// Extended roots only: per node, how it covers the face ([`super::cover`]); empty otherwise.
+    pub covers: Vec<NodeCover>,
 }
 
 impl Hierarchy {
@@ -60,6 +63,7 @@ impl Hierarchy {
             dh: vec![[0.0; 3]; len],
             len,
             touched: false,
+            covers: Vec::new(),
         }
     }
 

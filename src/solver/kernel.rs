@@ -47,6 +47,23 @@ pub fn clip_to_front(x: DVec3, n: DVec3, polygon: &[DVec3], out: &mut Vec<DVec3>
 /// Exact form factor from a differential area at `x` (unit normal `n`) to a planar polygon,
 /// without occlusion. Zero for a polygon entirely behind the tangent plane.
 pub fn point_polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
+    signed_contour_form_factor(x, n, polygon).abs()
+}
+
+/// Exact form factor from a differential area at `x` to a planar face given as rings (outer
+/// rings and holes of opposite orientations, as [`crate::domain::FaceMask::clip`] returns them),
+/// without occlusion: the rings' signed contour integrals add up to the face's.
+pub fn point_rings_form_factor(x: DVec3, n: DVec3, rings: &[Vec<DVec3>]) -> f64 {
+    rings
+        .iter()
+        .map(|r| signed_contour_form_factor(x, n, r))
+        .sum::<f64>()
+        .abs()
+}
+
+/// Lambert's contour integral over the polygon clipped to the front of `x`'s tangent plane; its
+/// sign follows the polygon's orientation.
+fn signed_contour_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
     let mut clipped = Vec::with_capacity(polygon.len() + 2);
     clip_to_front(x, n, polygon, &mut clipped);
     if clipped.len() < 3 {
@@ -73,7 +90,7 @@ pub fn point_polygon_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
         let angle = cl.atan2(a.dot(b));
         sum += angle * n.dot(c) / cl;
     }
-    (sum / (2.0 * PI)).abs()
+    sum / (2.0 * PI)
 }
 
 #[cfg(test)]
@@ -97,6 +114,27 @@ mod tests {
         let mut rev = unit_square_at(1.0);
         rev.reverse();
         assert!((point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &rev) - f).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_holed_square_is_the_square_minus_its_hole() {
+        // Outer counter-clockwise, hole clockwise: the rings' form factor is the difference of
+        // the two squares' (each exact on its own), whichever way the whole is oriented.
+        let outer = unit_square_at(1.0);
+        let mut hole: Vec<DVec3> = outer
+            .iter()
+            .map(|p| DVec3::new(p.x * 0.5, p.y * 0.5, 1.0))
+            .collect();
+        let expected = point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &outer)
+            - point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &hole);
+        hole.reverse();
+        let mut rings = vec![outer, hole];
+        let f = point_rings_form_factor(DVec3::ZERO, DVec3::Z, &rings);
+        assert!((f - expected).abs() < 1e-14 && f > 0.0, "{f} vs {expected}");
+        for r in &mut rings {
+            r.reverse();
+        }
+        assert!((point_rings_form_factor(DVec3::ZERO, DVec3::Z, &rings) - f).abs() < 1e-14);
     }
 
     #[test]

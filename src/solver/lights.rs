@@ -9,12 +9,13 @@
 //! the emitted power of `unshot_ratio` (CONTRACT). Units: intensity in W/sr (candela) for point
 //! and spot lights, irradiance in W/m^2 (lux) for directional lights.
 
-use super::basis::MAX_FUNCTIONS;
+use super::basis::{ChildMap, MAX_FUNCTIONS};
+use super::cover;
 use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
 use super::{
-    corner_probe_points, gather, mean_rgb_sum, weighted_deviation, Bases, Patch, Quantity, Rules,
-    MAX_DEPTH,
+    corner_probe_points, gather, mean_rgb_sum, visibility_point, weighted_deviation, Bases, Patch,
+    Quantity, Rules, MAX_DEPTH,
 };
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
@@ -71,7 +72,7 @@ pub fn unoccluded_power_estimate(light: &PunctualLight, roots: &[ElementRoot], f
         .map(|r| {
             let c = r.corners();
             let centroid = c.iter().copied().sum::<DVec3>() / c.len() as f64;
-            mean_rgb_sum(unoccluded_irradiance(light, centroid, r.normal, far).0) * r.area_m2
+            mean_rgb_sum(unoccluded_irradiance(light, centroid, r.normal, far).0) * r.face_area_m2
         })
         .sum()
 }
@@ -105,6 +106,11 @@ impl LightShot<'_> {
         let rnode = rcv.nodes[b];
         let rp = Patch::new(rroot, &rnode.map);
         let rrule = self.rules.of(rroot.shape);
+        // Extended receivers: points off the face see the light from their closest face point.
+        let rcover = match rroot.mask {
+            Some(_) => rcv.covers.get(b).copied(),
+            None => None,
+        };
         let ignore = [rroot.face.0; 2];
         let weight: Rgb = match self.quantity {
             Quantity::Radiance => rroot.rho,
@@ -124,7 +130,17 @@ impl LightShot<'_> {
                 continue;
             }
             unoccluded_max = unoccluded_max.max(weighted(e));
-            if self.visibility.visible(x, target, ignore) {
+            let (x_vis, target) = match &rcover {
+                Some(c) if rroot.frame.point(c.visibility_point[k]) != x => {
+                    let xv = rroot.frame.point(c.visibility_point[k]);
+                    (
+                        xv,
+                        unoccluded_irradiance(self.light, xv, rroot.normal, self.far).1,
+                    )
+                }
+                _ => (x, target),
+            };
+            if self.visibility.visible(x_vis, target, ignore) {
                 any_visible = true;
                 e_k[k] = e;
                 for a in 0..nr {
@@ -153,7 +169,7 @@ impl LightShot<'_> {
         }
         if !partial && err * rp.area <= self.threshold && unoccluded_max * rp.area > self.threshold
         {
-            partial = self.corner_rays_disagree(&rp, rroot, any_visible);
+            partial = self.corner_rays_disagree(&rnode.map, rroot, any_visible);
         }
         if partial {
             err = err.max(unoccluded_max);
@@ -161,7 +177,9 @@ impl LightShot<'_> {
         if err * rp.area > self.threshold {
             if rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge {
                 let first = if rnode.is_leaf() {
-                    rcv.split(b, rbasis, rroot.shape)
+                    let first = rcv.split(b, rbasis, rroot.shape);
+                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
+                    first
                 } else {
                     rnode.first_child as usize
                 };
@@ -177,12 +195,17 @@ impl LightShot<'_> {
     }
 
     /// Do shadow rays from points near the receiver's corners disagree with the quadrature rays?
-    fn corner_rays_disagree(&self, rp: &Patch, rroot: &ElementRoot, visible: bool) -> bool {
+    fn corner_rays_disagree(&self, map: &ChildMap, rroot: &ElementRoot, visible: bool) -> bool {
         let ignore = [rroot.face.0; 2];
         corner_probe_points(rroot.shape).iter().any(|&st| {
-            let x = rp.point(st);
-            let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
-            mean_rgb_sum(e) > 0.0 && self.visibility.visible(x, target, ignore) != visible
+            let x = rroot.frame.point(map.apply(st));
+            let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
+            if mean_rgb_sum(e) <= 0.0 {
+                return false;
+            }
+            let xv = visibility_point(rroot, map, st);
+            let target = unoccluded_irradiance(self.light, xv, rroot.normal, self.far).1;
+            self.visibility.visible(xv, target, ignore) != visible
         })
     }
 }

@@ -12,18 +12,20 @@
 //! and is refined only virtually (sub-elements computed by push, not stored).
 
 pub mod basis;
+pub mod cover;
 pub mod hierarchy;
 pub mod kernel;
 pub mod lights;
 pub mod quadrature;
 pub mod visibility;
 
-use crate::domain::{ElementRoot, Shape};
+use crate::domain::{ElementRoot, ElementStatus, Shape};
 use crate::scene::{PunctualLight, Rgb};
 use basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
+use cover::{face_integral, node_box, CoverRules, NodeCover};
 use glam::{DVec2, DVec3};
 use hierarchy::Hierarchy;
-use quadrature::{rule, QuadPoint};
+use quadrature::{rule, zones_of_influence, QuadPoint};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Instant;
@@ -154,14 +156,67 @@ impl Bases {
 /// Quadrature rules per shape at the solver's order.
 struct Rules {
     triangle: Vec<QuadPoint>,
-    parallelogram: Vec<QuadPoint>,
+    /// The parallelogram rule (`cover.rule`) with its zones of influence.
+    cover: CoverRules,
 }
 
 impl Rules {
+    fn new(order: usize) -> Self {
+        Rules {
+            triangle: rule(Shape::Triangle, order + 1),
+            cover: CoverRules {
+                rule: rule(Shape::Parallelogram, order + 1),
+                zones: zones_of_influence(order + 1),
+                moment_rule: rule(Shape::Triangle, 3),
+            },
+        }
+    }
     fn of(&self, shape: Shape) -> &[QuadPoint] {
         match shape {
             Shape::Triangle => &self.triangle,
-            Shape::Parallelogram => &self.parallelogram,
+            Shape::Parallelogram => &self.cover.rule,
+        }
+    }
+}
+
+/// The world point that stands in for root point `map(st)` in visibility queries: the point itself
+/// on a native root or on the face; else its closest point on the face (`V'(Q,P) = V(Q,P')`).
+fn visibility_point(root: &ElementRoot, map: &ChildMap, st: DVec2) -> DVec3 {
+    let p = map.apply(st);
+    match &root.mask {
+        Some(mask) => root.frame.point(mask.closest_point(p)),
+        None => root.frame.point(p),
+    }
+}
+
+/// What a source element emits from: its own shape, or the face inside it.
+enum Emitter {
+    Polygon(Vec<DVec3>),
+    Rings(Vec<Vec<DVec3>>),
+}
+
+impl Emitter {
+    fn new(root: &ElementRoot, patch: &Patch, map: &ChildMap, cover: Option<&NodeCover>) -> Self {
+        match (&root.mask, cover) {
+            (Some(mask), Some(c)) if c.status == ElementStatus::Partial => Emitter::Rings(
+                mask.clip(node_box(map))
+                    .iter()
+                    .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
+                    .collect(),
+            ),
+            _ => {
+                let mut polygon = Vec::with_capacity(4);
+                patch.corners(root.shape, &mut polygon);
+                Emitter::Polygon(polygon)
+            }
+        }
+    }
+
+    /// Exact unoccluded form factor from a differential area at `x` (normal `n`).
+    fn form_factor(&self, x: DVec3, n: DVec3) -> f64 {
+        match self {
+            Emitter::Polygon(p) => kernel::point_polygon_form_factor(x, n, p),
+            Emitter::Rings(r) => kernel::point_rings_form_factor(x, n, r),
         }
     }
 }
@@ -209,14 +264,17 @@ impl Patch {
     }
 }
 
-/// The source of a transfer: a stored element of the shooter, or a virtual sub-element.
+/// The source of a transfer: an element of the shooter, stored or virtual (computed by push).
 #[derive(Clone, Copy)]
 struct Source {
     map: ChildMap,
     depth: u8,
-    /// Stored node index when real.
+    /// The shooter's stored node with this map, when there is one.
     node: Option<usize>,
+    /// The unshot radiosity shot from this element.
     coeffs: [Rgb; MAX_FUNCTIONS],
+    /// Extended shooter only: how the element covers the face.
+    cover: Option<NodeCover>,
 }
 
 struct ShotContext<'a> {
@@ -226,6 +284,8 @@ struct ShotContext<'a> {
     visibility: &'a Visibility,
     source_root: usize,
     source_hierarchy: &'a Hierarchy,
+    /// A direct shot: the emission alone (a constant), not the shooter's stored unshot.
+    direct: bool,
     /// Absolute error threshold, in W (sum over channels).
     threshold: f64,
     min_edge: f64,
@@ -237,34 +297,36 @@ struct ShotContext<'a> {
 
 impl ShotContext<'_> {
     fn source_children(&self, s: &Source) -> [Source; 4] {
-        let shape = self.roots[self.source_root].shape;
+        let sroot = &self.roots[self.source_root];
+        let shape = sroot.shape;
         let basis = self.bases.of(shape);
         let n = basis.len();
         let maps = child_maps(shape);
-        std::array::from_fn(|c| match s.node {
-            Some(node) if !self.source_hierarchy.nodes[node].is_leaf() => {
-                let child = self.source_hierarchy.nodes[node].first_child as usize + c;
-                let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-                coeffs[..n].copy_from_slice(
-                    self.source_hierarchy
-                        .coeffs(&self.source_hierarchy.u, child),
-                );
-                Source {
-                    map: self.source_hierarchy.nodes[child].map,
-                    depth: s.depth + 1,
-                    node: Some(child),
-                    coeffs,
-                }
+        let h = self.source_hierarchy;
+        std::array::from_fn(|c| {
+            let stored = s
+                .node
+                .filter(|&node| !h.nodes[node].is_leaf())
+                .map(|node| h.nodes[node].first_child as usize + c);
+            let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+            match stored {
+                Some(child) if !self.direct => coeffs[..n].copy_from_slice(h.coeffs(&h.u, child)),
+                _ => basis.push(c, &s.coeffs[..n], &mut coeffs[..n]),
             }
-            _ => {
-                let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-                basis.push(c, &s.coeffs[..n], &mut coeffs[..n]);
-                Source {
-                    map: s.map.then(&maps[c]),
-                    depth: s.depth + 1,
-                    node: None,
-                    coeffs,
+            let map = s.map.then(&maps[c]);
+            let cover = match (&sroot.mask, stored) {
+                (None, _) => None,
+                (Some(_), Some(child)) => h.covers.get(child).copied(),
+                (Some(mask), None) => {
+                    Some(NodeCover::new(mask, &map, &self.rules.cover, basis, false))
                 }
+            };
+            Source {
+                map,
+                depth: s.depth + 1,
+                node: stored,
+                coeffs,
+                cover,
             }
         })
     }
@@ -282,25 +344,55 @@ impl ShotContext<'_> {
         if src.coeffs[..ns].iter().all(|c| c.iter().all(|&x| x == 0.0)) {
             return;
         }
+        // Empty elements of an extended domain never emit.
+        if src.cover.is_some_and(|c| !c.emits()) {
+            return;
+        }
         let sp = Patch::new(sroot, &src.map);
         let rnode = rcv.nodes[b];
         let rp = Patch::new(rroot, &rnode.map);
-        let mut polygon = Vec::with_capacity(4);
-        sp.corners(sroot.shape, &mut polygon);
+        let rcover = match rroot.mask {
+            Some(_) => rcv.covers.get(b).copied(),
+            None => None,
+        };
+        let emitter = Emitter::new(sroot, &sp, &src.map, src.cover.as_ref());
 
         let srule = self.rules.of(sroot.shape);
         let rrule = self.rules.of(rroot.shape);
         let mut phi_s = [[0.0; MAX_FUNCTIONS]; 64];
         let mut ys = [DVec3::ZERO; 64];
+        let mut ys_vis = [DVec3::ZERO; 64];
+        // Emission weights: the rule's, times the covered fraction of each point's zone.
+        let mut alpha = [1.0f64; 64];
+        let mut alpha_weight = 0.0;
         for (l, q) in srule.iter().enumerate() {
             sbasis.eval(q.st, &mut phi_s[l]);
             ys[l] = sp.point(q.st);
+            ys_vis[l] = ys[l];
+            if let Some(c) = &src.cover {
+                alpha[l] = c.alpha[l];
+                ys_vis[l] = sroot.frame.point(c.visibility_point[l]);
+            }
+            alpha_weight += alpha[l] * q.weight;
         }
         let ignore = [sroot.face.0, rroot.face.0];
         let oracle_weight: Rgb = match self.quantity {
             Quantity::Radiance => rroot.rho,
             Quantity::Irradiance => [1.0; 3],
         };
+        // The amplitude of the source's non-constant part: what a misplaced emission weight can
+        // move (the constant part is exact: it uses the exact form factor).
+        let source_variation: f64 = (1..ns)
+            .map(|bfn| {
+                (0..3)
+                    .map(|ch| oracle_weight[ch] * src.coeffs[bfn][ch].abs())
+                    .sum::<f64>()
+            })
+            .sum();
+        let source_partial = src
+            .cover
+            .is_some_and(|c| c.status == ElementStatus::Partial);
+        let mut coverage_err: f64 = 0.0;
         let mut e_k = [[0.0f64; 3]; 64];
         let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
         let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
@@ -310,8 +402,12 @@ impl ShotContext<'_> {
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
             let x = rp.point(q.st);
+            let x_vis = match &rcover {
+                Some(c) => rroot.frame.point(c.visibility_point[k]),
+                None => x,
+            };
             rbasis.eval(q.st, &mut psi[k]);
-            let f_exact = kernel::point_polygon_form_factor(x, rroot.normal, &polygon);
+            let f_exact = emitter.form_factor(x, rroot.normal);
             if f_exact <= 0.0 {
                 continue;
             }
@@ -323,16 +419,20 @@ impl ShotContext<'_> {
             );
             let mut fq = 0.0;
             let mut g = [0.0; MAX_FUNCTIONS];
-            let mut visible_points = 0usize;
+            let mut visible_weight = 0.0;
             let mut front_points = 0usize;
             for (l, ql) in srule.iter().enumerate() {
+                if alpha[l] <= 0.0 {
+                    continue;
+                }
                 let kxy = kernel::geometric_kernel(x, rroot.normal, ys[l], sroot.normal)
                     * sp.area
-                    * ql.weight;
-                let vis = self.visibility.visible(x, ys[l], ignore);
+                    * ql.weight
+                    * alpha[l];
+                let vis = self.visibility.visible(x_vis, ys_vis[l], ignore);
                 if vis {
                     any_visible = true;
-                    visible_points += 1;
+                    visible_weight += ql.weight * alpha[l];
                 } else {
                     any_blocked = true;
                 }
@@ -347,15 +447,20 @@ impl ShotContext<'_> {
                 }
             }
             if fq > 0.0 && front_points > 0 {
+                if source_partial {
+                    coverage_err = coverage_err.max((f_exact - fq).abs() * source_variation);
+                }
                 let scale = f_exact / fq;
                 for gb in g.iter_mut().take(ns) {
                     *gb *= scale;
                 }
             } else {
                 // Every source point is on or behind the receiver's plane (touching elements):
-                // the exact form factor with the fraction of visible points, constant part only.
+                // the exact form factor with the visible fraction of the source, constant part only.
                 g = [0.0; MAX_FUNCTIONS];
-                g[0] = f_exact * visible_points as f64 / srule.len() as f64;
+                if alpha_weight > 0.0 {
+                    g[0] = f_exact * visible_weight / alpha_weight;
+                }
             }
             let mut e = [0.0; 3];
             for bfn in 0..ns {
@@ -387,7 +492,7 @@ impl ShotContext<'_> {
             let mut phi = [0.0; MAX_FUNCTIONS];
             for &st in corner_probe_points(rroot.shape) {
                 let x = rp.point(st);
-                let f = kernel::point_polygon_form_factor(x, rroot.normal, &polygon);
+                let f = emitter.form_factor(x, rroot.normal);
                 rbasis.eval(st, &mut phi);
                 let e = src.coeffs[0].map(|c| f * c);
                 err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
@@ -397,23 +502,29 @@ impl ShotContext<'_> {
             // The quadrature rays agree, but they sample the interior only: a shadow boundary near
             // an element's border (a wall standing on a slab, an eave over a wall) slips between
             // them. Rays between points near the corners of both elements catch it.
-            partial = self.corner_rays_disagree(&rp, rroot, &sp, any_visible);
+            partial = self.corner_rays_disagree(&rnode.map, rroot, &src.map, any_visible);
         }
         if partial {
             err = err.max(unoccluded_max);
         }
-        let err = err * rp.area;
+        // A partly covered source whose alpha-weighted rule misses the face's shape: only
+        // splitting the source sharpens it.
+        let coverage_limited = coverage_err > err;
+        let err = err.max(coverage_err) * rp.area;
         if err > threshold {
             let can_split_r = rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge;
             let can_split_s = src.depth < MAX_DEPTH && sp.min_edge() * 0.5 >= self.min_edge;
             // The larger side is split, as in hierarchical radiosity; but splitting a source
             // whose radiosity has no finer detail (a leaf, or an emitter's constant) only helps
-            // where visibility is partial.
-            let source_detail = src
-                .node
-                .is_some_and(|n| !self.source_hierarchy.nodes[n].is_leaf());
-            let split_source =
-                can_split_s && (!can_split_r || (sp.area > rp.area && (partial || source_detail)));
+            // where visibility is partial or the source's coverage is what limits the transfer.
+            let source_detail = !self.direct
+                && src
+                    .node
+                    .is_some_and(|n| !self.source_hierarchy.nodes[n].is_leaf());
+            let split_source = can_split_s
+                && (!can_split_r
+                    || coverage_limited
+                    || (sp.area > rp.area && (partial || source_detail)));
             if split_source {
                 for child in self.source_children(src) {
                     self.transfer(&child, rcv_index, rcv, b);
@@ -422,7 +533,9 @@ impl ShotContext<'_> {
             }
             if can_split_r {
                 let first = if rnode.is_leaf() {
-                    rcv.split(b, rbasis, rroot.shape)
+                    let first = rcv.split(b, rbasis, rroot.shape);
+                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
+                    first
                 } else {
                     rnode.first_child as usize
                 };
@@ -493,27 +606,38 @@ fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
 const CORNER_INSET: f64 = 0.02;
 
 impl ShotContext<'_> {
-    /// Do rays between the corner probe points of the receiver and the source disagree with the
-    /// quadrature rays' verdict (`quadrature_visible`: all visible, or all blocked)?
+    /// Do rays between the corner probe points of the receiver element (`rmap` of `rroot`) and the
+    /// source element (`smap` of the shooter) disagree with the quadrature rays' verdict
+    /// (`quadrature_visible`: all visible, or all blocked)?
     fn corner_rays_disagree(
         &self,
-        rp: &Patch,
+        rmap: &ChildMap,
         rroot: &ElementRoot,
-        sp: &Patch,
+        smap: &ChildMap,
         quadrature_visible: bool,
     ) -> bool {
         let sroot = &self.roots[self.source_root];
         let (n_r, n_s) = (rroot.normal, sroot.normal);
         let ignore = [sroot.face.0, rroot.face.0];
+        let source_points: Vec<(DVec3, DVec3)> = corner_probe_points(sroot.shape)
+            .iter()
+            .map(|&ss| {
+                (
+                    sroot.frame.point(smap.apply(ss)),
+                    visibility_point(sroot, smap, ss),
+                )
+            })
+            .collect();
         for &rs in corner_probe_points(rroot.shape) {
-            let x = rp.point(rs);
-            for &ss in corner_probe_points(sroot.shape) {
-                let y = sp.point(ss);
+            let x = rroot.frame.point(rmap.apply(rs));
+            let mut x_vis = None;
+            for &(y, y_vis) in &source_points {
                 // Only pairs that exchange light count.
                 if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
                     continue;
                 }
-                if self.visibility.visible(x, y, ignore) != quadrature_visible {
+                let xv = *x_vis.get_or_insert_with(|| visibility_point(rroot, rmap, rs));
+                if self.visibility.visible(xv, y_vis, ignore) != quadrature_visible {
                     return true;
                 }
             }
@@ -544,20 +668,21 @@ pub fn solve(
 ) -> Solution {
     let start = Instant::now();
     let bases = Bases::new(params.order);
-    let n = bases.triangle.len().max(bases.parallelogram.len());
-    let _ = n;
-    let rules = Rules {
-        triangle: rule(Shape::Triangle, params.order + 1),
-        parallelogram: rule(Shape::Parallelogram, params.order + 1),
-    };
+    let rules = Rules::new(params.order);
     let mut hierarchies: Vec<Hierarchy> = roots
         .iter()
-        .map(|r| Hierarchy::new(bases.of(r.shape).len()))
+        .map(|r| {
+            let basis = bases.of(r.shape);
+            let mut h = Hierarchy::new(basis.len());
+            cover::extend(&mut h, r, &rules.cover, basis);
+            h
+        })
         .collect();
+    // Emitted power: exitance over each face (an extended root's domain emits only where its face is).
     let mut emitted = [0.0; 3];
     for r in &roots {
         for ch in 0..3 {
-            emitted[ch] += r.exitance[ch] * r.area_m2;
+            emitted[ch] += r.exitance[ch] * r.face_area_m2;
         }
     }
     let links = AtomicU64::new(0);
@@ -606,17 +731,18 @@ pub fn solve(
         iterations += 1;
     }
     if !lights.is_empty() {
-        // The root's coefficient 0 is its mean direct irradiance (orthonormal basis, measure 1).
+        // What the lights delivered: direct irradiance integrated over each face.
         for (h, r) in hierarchies.iter().zip(&roots) {
-            if let Some(hd) = h.hd.first() {
-                for ch in 0..3 {
-                    emitted[ch] += hd[ch] * r.area_m2;
-                }
+            let delivered = face_integral(h, &h.hd, r);
+            for ch in 0..3 {
+                emitted[ch] += delivered[ch];
             }
         }
     }
     let emitted_total = mean_rgb_sum(emitted);
-    let unshot_power = |h: &Hierarchy, r: &ElementRoot| -> f64 { mean_rgb_sum(h.u[0]) * r.area_m2 };
+    // Unshot power, counted over each face only (never over the empty part of a domain).
+    let unshot_power =
+        |h: &Hierarchy, r: &ElementRoot| -> f64 { mean_rgb_sum(face_integral(h, &h.u, r)) };
 
     // Emitters' unshot radiosity starts at their exitance; direct shots send it first.
     let mut direct_queue: Vec<usize> = (0..roots.len())
@@ -627,20 +753,31 @@ pub fn solve(
             .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].area_m2))
     });
     for &i in &direct_queue {
-        hierarchies[i].u[0] = roots[i].exitance;
+        // The emission is a constant: coefficient 0 of every node (what lights left unshot stays).
+        let h = &mut hierarchies[i];
+        let n = h.len;
+        for node in 0..h.nodes.len() {
+            for ch in 0..3 {
+                h.u[node * n][ch] += roots[i].exitance[ch];
+            }
+        }
     }
-    let total_unshot =
-        |hs: &[Hierarchy]| -> f64 { hs.iter().zip(&roots).map(|(h, r)| unshot_power(h, r)).sum() };
-    let ratio = |hs: &[Hierarchy]| {
+    // Per root, its unshot power (kept up to date after every shot).
+    let mut unshot: Vec<f64> = hierarchies
+        .iter()
+        .zip(&roots)
+        .map(|(h, r)| unshot_power(h, r))
+        .collect();
+    let ratio = |unshot: &[f64]| {
         if emitted_total > 0.0 {
-            total_unshot(hs) / emitted_total
+            unshot.iter().sum::<f64>() / emitted_total
         } else {
             0.0
         }
     };
     let mut direct_iter = direct_queue.into_iter();
     loop {
-        let r = ratio(&hierarchies);
+        let r = ratio(&unshot);
         let progress = Progress {
             iterations,
             unshot_ratio: r,
@@ -669,12 +806,9 @@ pub fn solve(
                 if r <= params.target_unshot {
                     break;
                 }
-                let best = (0..roots.len()).max_by(|&a, &b| {
-                    unshot_power(&hierarchies[a], &roots[a])
-                        .total_cmp(&unshot_power(&hierarchies[b], &roots[b]))
-                });
+                let best = (0..roots.len()).max_by(|&a, &b| unshot[a].total_cmp(&unshot[b]));
                 match best {
-                    Some(b) if unshot_power(&hierarchies[b], &roots[b]) > 0.0 => (b, false),
+                    Some(b) if unshot[b] > 0.0 => (b, false),
                     _ => break,
                 }
             }
@@ -691,8 +825,9 @@ pub fn solve(
         let source = Source {
             map: ChildMap::IDENTITY,
             depth: 0,
-            node: if direct { None } else { Some(0) },
+            node: Some(0),
             coeffs: root_coeffs,
+            cover: source_h.covers.first().copied(),
         };
         {
             let ctx = ShotContext {
@@ -702,6 +837,7 @@ pub fn solve(
                 visibility,
                 source_root: shooter,
                 source_hierarchy: &source_h,
+                direct,
                 threshold,
                 min_edge,
                 quantity: params.quantity,
@@ -709,18 +845,23 @@ pub fn solve(
                 capped: &capped,
                 cancel,
             };
-            hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
-                if ri == shooter
-                    || h.nodes.is_empty()
-                    || !faces_each_other(&roots[shooter], &roots[ri], facing_eps)
-                {
-                    return;
-                }
-                ctx.transfer(&source, ri, h, 0);
-                if h.touched {
-                    h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, direct);
-                }
-            });
+            hierarchies
+                .par_iter_mut()
+                .zip(unshot.par_iter_mut())
+                .enumerate()
+                .for_each(|(ri, (h, power))| {
+                    if ri == shooter
+                        || h.nodes.is_empty()
+                        || !faces_each_other(&roots[shooter], &roots[ri], facing_eps)
+                    {
+                        return;
+                    }
+                    ctx.transfer(&source, ri, h, 0);
+                    if h.touched {
+                        h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, direct);
+                        *power = unshot_power(h, &roots[ri]);
+                    }
+                });
         }
         hierarchies[shooter] = source_h;
         let hs = &mut hierarchies[shooter];
@@ -740,6 +881,7 @@ pub fn solve(
         } else {
             hs.u.iter_mut().for_each(|c| *c = [0.0; 3]);
         }
+        unshot[shooter] = unshot_power(hs, &roots[shooter]);
         iterations += 1;
     }
     let last = *convergence.last().expect("at least one progress row");
@@ -806,22 +948,33 @@ impl Solution {
         }
     }
 
-    /// Mean of the requested quantity over the root's element (an integral: no clamp).
+    /// Mean over the root's face of the function whose coefficients `array` holds (for a native
+    /// root, coefficient 0; for an extended one, the face-weighted integral over its leaves).
+    fn face_mean(&self, root: usize, array: &[Rgb]) -> Rgb {
+        let r = &self.roots[root];
+        if r.mask.is_none() || r.face_area_m2 <= 0.0 {
+            return array[0];
+        }
+        face_integral(&self.hierarchies[root], array, r).map(|x| x / r.face_area_m2)
+    }
+
+    /// Mean of the requested quantity over the root's face (an integral: no clamp).
     pub fn mean_value(&self, root: usize) -> Rgb {
         let h = &self.hierarchies[root];
-        let total = h.h[0];
+        let total = self.face_mean(root, &h.h);
         let mean_h = if self.params.indirect_only {
-            [0, 1, 2].map(|c| total[c] - h.hd[0][c])
+            let direct = self.face_mean(root, &h.hd);
+            [0, 1, 2].map(|c| total[c] - direct[c])
         } else {
             total
         };
         self.quantity_from_irradiance(root, mean_h)
     }
 
-    /// Mean radiosity B over the root (emission included), W/m^2.
+    /// Mean radiosity B over the root's face (emission included), W/m^2.
     pub fn mean_radiosity(&self, root: usize) -> Rgb {
         let r = &self.roots[root];
-        let h = self.hierarchies[root].h[0];
+        let h = self.face_mean(root, &self.hierarchies[root].h);
         [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
     }
 }

@@ -7,7 +7,7 @@
 //!
 //! Nodes are computed by Newton's method on the Legendre recurrence (no tables to mistype).
 
-use crate::domain::Shape;
+use crate::domain::{Shape, StBox};
 use glam::DVec2;
 
 /// One point of a rule in reference coordinates with its normalised weight.
@@ -78,6 +78,33 @@ pub fn rule(shape: Shape, n: usize) -> Vec<QuadPoint> {
     out
 }
 
+/// The zones of influence of the points of `rule(Shape::Parallelogram, n)`, in the same order
+/// (paper 3.3, figure 6): along each axis the points' weights, laid end to end in the points'
+/// order, tile `[0, 1]`; a point's zone is the product of its two intervals. So each zone's area is
+/// its point's weight, the zones tile the square, and each contains its point.
+pub fn zones_of_influence(n: usize) -> Vec<StBox> {
+    let g = gauss_legendre(n);
+    let mut edges = Vec::with_capacity(n + 1);
+    let mut acc = 0.0;
+    edges.push(0.0);
+    for &(_, w) in &g {
+        acc += w;
+        edges.push(acc);
+    }
+    // Rounding: the last edge is the square's side.
+    edges[n] = 1.0;
+    let mut out = Vec::with_capacity(n * n);
+    for i in 0..n {
+        for j in 0..n {
+            out.push(StBox::new(
+                DVec2::new(edges[i], edges[j]),
+                DVec2::new(edges[i + 1], edges[j + 1]),
+            ));
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,6 +160,26 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn zones_of_influence_tile_the_square_and_hold_their_points() {
+        for n in 1..=4 {
+            let zones = zones_of_influence(n);
+            let points = rule(Shape::Parallelogram, n);
+            assert_eq!(zones.len(), points.len());
+            let total: f64 = zones.iter().map(|z| z.area()).sum();
+            assert!((total - 1.0).abs() < 1e-14);
+            for (z, p) in zones.iter().zip(&points) {
+                assert!(
+                    (z.area() - p.weight).abs() < 1e-14,
+                    "a zone's area is its weight"
+                );
+                assert!(
+                    z.min.x < p.st.x && p.st.x < z.max.x && z.min.y < p.st.y && p.st.y < z.max.y
+                );
             }
         }
     }

@@ -1,0 +1,291 @@
+//! How an extended root's elements cover its face (paper 3.3): per element, its status (empty,
+//! full, partial), the covered fraction alpha of each quadrature point's zone of influence (the
+//! emission weights), the points that stand in for its quadrature points in visibility queries
+//! (their closest points on the face: `V'(Q,P) = V(Q,P')`), and its face moments
+//! `m_i = (1/|e|) * integral over (face inside e) of phi_i`, which turn coefficients into integrals
+//! over the face: `integral over (face inside e) of f = |e| * sum_i f_i m_i`.
+//!
+//! Invariants: a hierarchy of an extended root holds one [`NodeCover`] per node (computed when the
+//! node is created, [`extend`]); native roots hold none. A full element has alpha 1, moments
+//! `(1, 0, ...)` and its own quadrature points; an empty one alpha 0 and moments 0. Moments are
+//! exact up to rounding (the clipped face split into signed triangles, a triangle rule exact for
+//! the basis' products with 1), so power counted over the face never includes the empty part of a
+//! domain.
+
+use super::basis::{Basis, ChildMap, MAX_FUNCTIONS};
+use super::hierarchy::Hierarchy;
+use super::quadrature::QuadPoint;
+use crate::domain::{ElementRoot, ElementStatus, FaceMask, StBox};
+use crate::scene::Rgb;
+use glam::DVec2;
+
+/// Most points of a quadrature rule the solver uses (4 per axis, M3).
+pub const MAX_RULE_POINTS: usize = 16;
+
+/// The face inside one element of an extended root.
+#[derive(Debug, Clone, Copy)]
+pub struct NodeCover {
+    pub status: ElementStatus,
+    /// Per point of the element's quadrature rule: the covered fraction of its zone of influence.
+    pub alpha: [f64; MAX_RULE_POINTS],
+    /// Per point of the rule: the root point its visibility rays start from (the point itself
+    /// when on the face, else its closest point on the face).
+    pub visibility_point: [DVec2; MAX_RULE_POINTS],
+    /// `(1/|e|) * integral over (face inside e) of phi_i`, per basis function.
+    pub moments: [f64; MAX_FUNCTIONS],
+}
+
+/// What computing covers needs: the element rule, its zones of influence, and a triangle rule for
+/// the moments.
+#[derive(Debug, Clone)]
+pub struct CoverRules {
+    pub rule: Vec<QuadPoint>,
+    pub zones: Vec<StBox>,
+    /// Exact for total degree 4 (the product of two M3 functions' degrees per axis is reached by
+    /// `phi_i` alone: degree 2 per axis, 4 in all).
+    pub moment_rule: Vec<QuadPoint>,
+}
+
+/// The box of root coordinates an element of a parallelogram root covers.
+pub fn node_box(map: &ChildMap) -> StBox {
+    debug_assert!(map.e1.y == 0.0 && map.e2.x == 0.0 && map.e1.x > 0.0 && map.e2.y > 0.0);
+    StBox::new(map.o, map.o + map.e1 + map.e2)
+}
+
+impl NodeCover {
+    /// The cover of the element with map `map` (in root coordinates) of a root with `mask`.
+    /// `with_moments`: also integrate the basis over the face (stored elements need it; virtual
+    /// source elements do not).
+    pub fn new(
+        mask: &FaceMask,
+        map: &ChildMap,
+        rules: &CoverRules,
+        basis: &Basis,
+        with_moments: bool,
+    ) -> Self {
+        let b = node_box(map);
+        let n = rules.rule.len();
+        debug_assert!(n <= MAX_RULE_POINTS && rules.zones.len() == n);
+        let mut cover = NodeCover {
+            status: mask.coverage(b).status,
+            alpha: [0.0; MAX_RULE_POINTS],
+            visibility_point: [DVec2::ZERO; MAX_RULE_POINTS],
+            moments: [0.0; MAX_FUNCTIONS],
+        };
+        for (k, q) in rules.rule.iter().enumerate() {
+            cover.visibility_point[k] = map.apply(q.st);
+        }
+        match cover.status {
+            ElementStatus::Full => {
+                cover.alpha[..n].fill(1.0);
+                cover.moments[0] = 1.0;
+                return cover;
+            }
+            ElementStatus::Empty => {}
+            ElementStatus::Partial => {
+                for (k, z) in rules.zones.iter().enumerate() {
+                    let zone = StBox::new(map.apply(z.min), map.apply(z.max));
+                    cover.alpha[k] = mask.coverage(zone).fraction(&zone);
+                }
+                if with_moments {
+                    cover.moments = face_moments(mask, map, b, rules, basis);
+                }
+            }
+        }
+        for p in cover.visibility_point[..n].iter_mut() {
+            *p = mask.closest_point(*p);
+        }
+        cover
+    }
+
+    /// Whether the element emits at all.
+    pub fn emits(&self) -> bool {
+        self.status != ElementStatus::Empty
+    }
+}
+
+/// `(1/|e|) * integral over (face inside e) of phi_i`, by signed triangles of the clipped face.
+fn face_moments(
+    mask: &FaceMask,
+    map: &ChildMap,
+    b: StBox,
+    rules: &CoverRules,
+    basis: &Basis,
+) -> [f64; MAX_FUNCTIONS] {
+    let nf = basis.len();
+    let mut m = [0.0; MAX_FUNCTIONS];
+    let mut phi = [0.0; MAX_FUNCTIONS];
+    for ring in mask.clip(b) {
+        let p0 = ring[0];
+        for i in 1..ring.len() - 1 {
+            let (p1, p2) = (ring[i], ring[i + 1]);
+            let signed_area = 0.5 * (p1 - p0).perp_dot(p2 - p0);
+            if signed_area == 0.0 {
+                continue;
+            }
+            for q in &rules.moment_rule {
+                let st = p0 + (p1 - p0) * q.st.x + (p2 - p0) * q.st.y;
+                basis.eval(map.local(st), &mut phi);
+                for a in 0..nf {
+                    m[a] += signed_area * q.weight * phi[a];
+                }
+            }
+        }
+    }
+    let box_area = b.area();
+    for x in m.iter_mut().take(nf) {
+        *x /= box_area;
+    }
+    m
+}
+
+/// Computes the covers of the nodes of `h` that have none yet (all nodes of a new hierarchy, the
+/// children of a split). Does nothing for a native root.
+pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: &Basis) {
+    let Some(mask) = &root.mask else {
+        return;
+    };
+    for i in h.covers.len()..h.nodes.len() {
+        let cover = NodeCover::new(mask, &h.nodes[i].map, rules, basis, true);
+        h.covers.push(cover);
+    }
+}
+
+/// The integral over the root's face of the function whose coefficients `array` holds (per node,
+/// `h.len` each), per channel: `|root| * coefficient 0` for a native root; over the leaves of an
+/// extended root, each weighted by its face moments.
+pub fn face_integral(h: &Hierarchy, array: &[Rgb], root: &ElementRoot) -> Rgb {
+    if root.mask.is_none() {
+        return array[0].map(|c| c * root.area_m2);
+    }
+    debug_assert_eq!(h.covers.len(), h.nodes.len());
+    let n = h.len;
+    let mut sum = [0.0; 3];
+    for (i, node) in h.nodes.iter().enumerate() {
+        let cover = &h.covers[i];
+        if !node.is_leaf() || cover.status == ElementStatus::Empty {
+            continue;
+        }
+        let area = root.area_m2 * node.map.e1.perp_dot(node.map.e2).abs();
+        for a in 0..n {
+            let m = cover.moments[a];
+            if m == 0.0 {
+                continue;
+            }
+            for ch in 0..3 {
+                sum[ch] += area * m * array[i * n + a][ch];
+            }
+        }
+    }
+    sum
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::{ExtendedDomain, Shape};
+    use crate::solver::quadrature::{rule, zones_of_influence};
+    use std::sync::Arc;
+
+    fn rules(order: usize) -> CoverRules {
+        CoverRules {
+            rule: rule(Shape::Parallelogram, order + 1),
+            zones: zones_of_influence(order + 1),
+            moment_rule: rule(Shape::Triangle, 3),
+        }
+    }
+
+    /// The unit square with a centred square hole of side `h` as a domain (its own
+    /// parallelogram is the unit square).
+    fn holed(h: f64) -> FaceMask {
+        let v = |x: f64, y: f64| DVec2::new(x, y);
+        let (a, b) = (0.5 - h / 2.0, 0.5 + h / 2.0);
+        let outer = vec![v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)];
+        let hole = vec![v(a, a), v(a, b), v(b, b), v(b, a)];
+        FaceMask::new(
+            Arc::new(ExtendedDomain::from_plane_polygon(&outer, &[hole]).unwrap()),
+            false,
+        )
+    }
+
+    #[test]
+    fn moments_of_a_holed_square_match_the_exact_integrals() {
+        // Over the whole domain: m_0 is the covered fraction; the hole is centred, so by symmetry
+        // every function odd in s or in t integrates to 0 over the face.
+        let mask = holed(0.5);
+        // The domain may be the square in any of its symmetric frames: moments of odd functions
+        // vanish whatever the frame.
+        for order in 1..=3 {
+            let basis = Basis::new(Shape::Parallelogram, order);
+            let c = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules(order), &basis, true);
+            assert_eq!(c.status, ElementStatus::Partial);
+            assert!((c.moments[0] - 0.75).abs() < 1e-13, "{}", c.moments[0]);
+            if order >= 2 {
+                // phi_1 ~ sqrt3 (2t - 1) and phi_3 ~ sqrt3 (2s - 1): odd, integral 0.
+                for a in [1, 3] {
+                    assert!(c.moments[a].abs() < 1e-13);
+                }
+            }
+            if order == 3 {
+                // phi = sqrt5 (6 s^2 - 6 s + 1) (times 1 in t; indices 2 and 6 are the two
+                // quadratics, equal here by the hole's symmetry): integral 0 over the square, so its
+                // face integral is minus its integral over the hole; Simpson gives that independently.
+                let simpson = |f: &dyn Fn(f64) -> f64, a: f64, b: f64| {
+                    let n = 2000;
+                    let h = (b - a) / n as f64;
+                    (0..=n)
+                        .map(|i| {
+                            let w = if i == 0 || i == n {
+                                1.0
+                            } else if i % 2 == 1 {
+                                4.0
+                            } else {
+                                2.0
+                            };
+                            w * f(a + i as f64 * h)
+                        })
+                        .sum::<f64>()
+                        * h
+                        / 3.0
+                };
+                let p2 = |s: f64| 5f64.sqrt() * (6.0 * s * s - 6.0 * s + 1.0);
+                // Over the face: integral over the square (0) minus over the hole (width 0.5 in t).
+                let expected = -simpson(&p2, 0.25, 0.75) * 0.5;
+                for a in [2, 6] {
+                    let got = c.moments[a];
+                    assert!(
+                        (got - expected).abs() < 1e-9,
+                        "quadratic moment {a}: {got} vs {expected}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn covers_of_children_sum_to_the_parent() {
+        // Area (m_0 |e|) is additive over the four children; alpha of a full child is 1.
+        let mask = holed(0.3);
+        let basis = Basis::new(Shape::Parallelogram, 2);
+        let r = rules(2);
+        let parent = NodeCover::new(&mask, &ChildMap::IDENTITY, &r, &basis, true);
+        let maps = crate::solver::basis::child_maps(Shape::Parallelogram);
+        let mut sum = 0.0;
+        for m in &maps {
+            let c = NodeCover::new(&mask, m, &r, &basis, true);
+            sum += 0.25 * c.moments[0];
+            for k in 0..r.rule.len() {
+                assert!((0.0..=1.0).contains(&c.alpha[k]));
+                let p = m.apply(r.rule[k].st);
+                if mask.contains(p) {
+                    assert_eq!(c.visibility_point[k], p);
+                } else {
+                    assert!(mask.contains(c.visibility_point[k]));
+                    assert!(c.alpha[k] < 1.0);
+                }
+            }
+        }
+        assert!((sum - parent.moments[0]).abs() < 1e-13);
+        assert!((parent.moments[0] - (1.0 - 0.09)).abs() < 1e-13);
+    }
+}
