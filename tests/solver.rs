@@ -108,6 +108,46 @@ fn point_one_metre_under_the_centre_of_a_unit_square_sees_its_form_factor() {
     }
 }
 
+/// A one-sided emitter lights only its front half-space: a receiver reaching behind the emitter's
+/// plane (an overhang above a wall's top, a domain larger than its face) stays dark there.
+#[test]
+fn nothing_is_received_behind_a_one_sided_emitter() {
+    let mut b = SceneBuilder::new();
+    let recv = b.material([1.0; 3], [0.0; 3], false);
+    let emit = b.material([0.0; 3], [1.0; 3], false);
+    // Emitter: x, y in [0, 1] at z = 0, facing -z. Receiver: y = 1.5, facing down, z in [-1, 1].
+    b.quad(emit, DVec3::ZERO, DVec3::Y, DVec3::X, 1);
+    b.quad(
+        recv,
+        DVec3::new(0.0, 1.5, -1.0),
+        DVec3::X,
+        DVec3::Z * 2.0,
+        1,
+    );
+    let glb = b.to_glb();
+    let probe = |z: f64| ProbePoint {
+        p: [0.5, 1.5, z],
+        n: [0.0, -1.0, 0.0],
+    };
+    let probes = [probe(-0.5), probe(0.5), probe(0.9)];
+    for mode in MODES {
+        for order in [1, 2] {
+            let (prepared, sol) = solve(&glb, order, mode);
+            let v = evaluate_probes(&sol, &probes, prepared.diagonal);
+            let l: Vec<f64> = v.iter().map(|p| p.l.expect("on the receiver")[0]).collect();
+            println!(
+                "{mode:?} M{order}: in front {:.5}, behind {:.6} {:.6}",
+                l[0], l[1], l[2]
+            );
+            assert!(l[0] > 0.01, "the front half is lit");
+            assert!(
+                l[1] < 0.01 * l[0] && l[2] < 0.01 * l[0],
+                "{mode:?} M{order}: light behind the emitter: {l:?}"
+            );
+        }
+    }
+}
+
 #[test]
 fn furnace_is_two_at_every_probe_for_all_orders_and_both_modes() {
     // A closed unit cube, rho = 0.5 and L_e = 1 everywhere: L = 2 at every point.

@@ -211,6 +211,15 @@ impl ExtendedDomain {
     /// it), as domain coordinates: the `P'` of the extended visibility. An empty face returns
     /// `st`. O(n) for a point outside the face.
     pub fn closest_point_on_face(&self, st: DVec2) -> DVec2 {
+        self.closest_point_inset(st, 0.0)
+    }
+
+    /// As [`Self::closest_point_on_face`], but a point outside the face is brought `inset` metres
+    /// inside it, off the boundary (along the inward normals of the edges at the closest point):
+    /// a visibility ray must not start on the line where another surface meets the face, where
+    /// the ray's first hit would be too close to count. Falls back to the boundary point when the
+    /// inset point is not in the face (a sliver narrower than the inset).
+    pub fn closest_point_inset(&self, st: DVec2, inset: f64) -> DVec2 {
         if !st.is_finite() || self.contains(st) {
             return st;
         }
@@ -219,7 +228,9 @@ impl ExtendedDomain {
             |a: DVec2, b: DVec2| uu * a.x * b.x + uv * (a.x * b.y + a.y * b.x) + vv * a.y * b.y;
         let mut best = st;
         let mut best_d2 = f64::INFINITY;
-        for ring in &self.rings {
+        // (ring, edge, lambda) of the closest point.
+        let mut at = (0, 0, 0.0);
+        for (ri, ring) in self.rings.iter().enumerate() {
             let n = ring.len();
             for i in 0..n {
                 let (a, b) = (ring[i], ring[(i + 1) % n]);
@@ -235,10 +246,42 @@ impl ExtendedDomain {
                 if d2 < best_d2 {
                     best_d2 = d2;
                     best = c;
+                    at = (ri, i, lambda);
                 }
             }
         }
-        best
+        if inset <= 0.0 || !best_d2.is_finite() {
+            return best;
+        }
+        // Inward normals (interior on the left of every ring edge) of the closest edge, and of the
+        // edge sharing the vertex when the closest point is a vertex.
+        let (ri, i, lambda) = at;
+        let ring = &self.rings[ri];
+        let n = ring.len();
+        let inward = |e: usize| -> DVec2 {
+            let (a, b) = (ring[e % n], ring[(e + 1) % n]);
+            let d = self.frame.u * (b - a).x + self.frame.v * (b - a).y;
+            let left = self.normal.cross(d).normalize_or_zero() * inset;
+            plane_coordinates(
+                &Frame {
+                    origin: DVec3::ZERO,
+                    ..self.frame
+                },
+                left,
+            )
+        };
+        let mut offset = inward(i);
+        if lambda <= 0.0 {
+            offset += inward(i + n - 1);
+        } else if lambda >= 1.0 {
+            offset += inward(i + 1);
+        }
+        let moved = best + offset;
+        if moved.is_finite() && self.contains(moved) {
+            moved
+        } else {
+            best
+        }
     }
 
     /// The open segment `a -> b` (world space) passes through the face: its endpoints lie strictly

@@ -16,17 +16,30 @@ use super::extended::ExtendedDomain;
 use glam::DVec2;
 use std::sync::Arc;
 
+/// How far inside the face (relative to the scene's diagonal) the stand-in of a domain point
+/// outside the face sits: ten times the visibility's endpoint tolerance (`1e-6` of the diagonal),
+/// so a ray from it towards a wall standing on the face's border hits that wall far enough from
+/// its start to count.
+pub const VISIBILITY_INSET_REL: f64 = 1e-5;
+
 /// An extended face seen from one of its sides' roots.
 #[derive(Debug, Clone)]
 pub struct FaceMask {
     domain: Arc<ExtendedDomain>,
     /// The root is a back side: its `(s, t)` is the domain's `(t, s)`.
     swap: bool,
+    /// [`Self::closest_point`] brings points this far (metres) inside the face.
+    inset: f64,
 }
 
 impl FaceMask {
-    pub fn new(domain: Arc<ExtendedDomain>, swap: bool) -> Self {
-        FaceMask { domain, swap }
+    /// `inset`: metres, usually `VISIBILITY_INSET_REL` times the scene's diagonal.
+    pub fn new(domain: Arc<ExtendedDomain>, swap: bool, inset: f64) -> Self {
+        FaceMask {
+            domain,
+            swap,
+            inset,
+        }
     }
 
     pub fn domain(&self) -> &ExtendedDomain {
@@ -56,9 +69,11 @@ impl FaceMask {
         self.domain.coverage(self.flip_box(b))
     }
 
-    /// The point of the face closest to root point `st` in world distance (`st` when inside).
+    /// The stand-in on the face of root point `st` for visibility (`st` itself when on the face):
+    /// its closest face point, brought `inset` inside the face
+    /// ([`ExtendedDomain::closest_point_inset`]).
     pub fn closest_point(&self, st: DVec2) -> DVec2 {
-        self.flip(self.domain.closest_point_on_face(self.flip(st)))
+        self.flip(self.domain.closest_point_inset(self.flip(st), self.inset))
     }
 
     /// Face area over domain area.
@@ -199,7 +214,10 @@ mod tests {
             v(0.0, 1.0),
         ];
         let d = Arc::new(ExtendedDomain::from_plane_polygon(&outer, &[]).unwrap());
-        let (front, back) = (FaceMask::new(d.clone(), false), FaceMask::new(d, true));
+        let (front, back) = (
+            FaceMask::new(d.clone(), false, 1e-6),
+            FaceMask::new(d, true, 1e-6),
+        );
         let mut inside = 0;
         for i in 0..=20 {
             for j in 0..=20 {

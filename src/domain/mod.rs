@@ -303,6 +303,7 @@ fn sided(frame: Frame, side: Side) -> Frame {
 /// parallelogram, and the domain is kept in [`Domains::extended`].
 pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domains {
     let mut domains = Domains::default();
+    let inset = mask::VISIBILITY_INSET_REL * scene.diagonal();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
         let exitance = material.emission.map(|e| std::f64::consts::PI * e);
@@ -362,7 +363,7 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                     shape,
                     frame,
                     Some((
-                        FaceMask::new(domain.clone(), side == Side::Back),
+                        FaceMask::new(domain.clone(), side == Side::Back, inset),
                         *face_area,
                     )),
                 ),

@@ -205,6 +205,7 @@ mod tests {
         FaceMask::new(
             Arc::new(ExtendedDomain::from_plane_polygon(&outer, &[hole]).unwrap()),
             false,
+            1e-9,
         )
     }
 

@@ -189,16 +189,23 @@ fn visibility_point(root: &ElementRoot, map: &ChildMap, st: DVec2) -> DVec3 {
     }
 }
 
-/// What a source element emits from: its own shape, or the face inside it.
-enum Emitter {
+/// What a source element emits from: its own shape, or the face inside it; on its front side only.
+struct Emitter {
+    shape: EmitterShape,
+    /// A point of the source's plane and its unit normal (the emitting side).
+    origin: DVec3,
+    normal: DVec3,
+}
+
+enum EmitterShape {
     Polygon(Vec<DVec3>),
     Rings(Vec<Vec<DVec3>>),
 }
 
 impl Emitter {
     fn new(root: &ElementRoot, patch: &Patch, map: &ChildMap, cover: Option<&NodeCover>) -> Self {
-        match (&root.mask, cover) {
-            (Some(mask), Some(c)) if c.status == ElementStatus::Partial => Emitter::Rings(
+        let shape = match (&root.mask, cover) {
+            (Some(mask), Some(c)) if c.status == ElementStatus::Partial => EmitterShape::Rings(
                 mask.clip(node_box(map))
                     .iter()
                     .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
@@ -207,16 +214,26 @@ impl Emitter {
             _ => {
                 let mut polygon = Vec::with_capacity(4);
                 patch.corners(root.shape, &mut polygon);
-                Emitter::Polygon(polygon)
+                EmitterShape::Polygon(polygon)
             }
+        };
+        Emitter {
+            shape,
+            origin: patch.origin,
+            normal: root.normal,
         }
     }
 
-    /// Exact unoccluded form factor from a differential area at `x` (normal `n`).
+    /// Exact unoccluded form factor from a differential area at `x` (normal `n`): zero behind the
+    /// source's plane, which a one-sided emitter does not light (a receiver element, or an
+    /// extended domain, may reach behind a source it otherwise faces).
     fn form_factor(&self, x: DVec3, n: DVec3) -> f64 {
-        match self {
-            Emitter::Polygon(p) => kernel::point_polygon_form_factor(x, n, p),
-            Emitter::Rings(r) => kernel::point_rings_form_factor(x, n, r),
+        if self.normal.dot(x - self.origin) <= 0.0 {
+            return 0.0;
+        }
+        match &self.shape {
+            EmitterShape::Polygon(p) => kernel::point_polygon_form_factor(x, n, p),
+            EmitterShape::Rings(r) => kernel::point_rings_form_factor(x, n, r),
         }
     }
 }
