@@ -1,9 +1,11 @@
 //! Benchmark of the extended domain's trapezoidal map (issue 4): construction time and point
-//! location queries per second for faces of about 10, 1 000 and 100 000 edges, and the ratios
-//! between sizes (expected: O(n log n) build, O(log n) query), with the work counts (nodes
-//! visited) that the wall times include along with cache misses; queries in random order and in
-//! scanline order. Also the whole `ExtendedDomain`
-//! build (hull, parallelogram, map). Run with `cargo bench --bench trapezoidal_map`.
+//! location queries per second for faces of about 10, 1 000 and 100 000 edges, with the exact
+//! operation counts (nodes visited per query, DAG nodes visited and trapezoids created and
+//! destroyed per inserted segment) and the ratios between sizes against the model (O(n log n)
+//! build, O(log n) query). Queries in random order, in scanline order, and a few cycled so their
+//! paths stay in cache (which separates the work from cache misses). Also the whole
+//! `ExtendedDomain` build (hull, parallelogram, map). Run with `cargo bench --bench
+//! trapezoidal_map`.
 
 use glam::DVec2;
 use std::hint::black_box;
@@ -73,12 +75,39 @@ struct Row {
     edges: usize,
     build: Duration,
     domain: Duration,
-    queries_per_s: f64,
-    coherent_queries_per_s: f64,
-    depth: usize,
-    /// Mean nodes visited per query.
+    /// Random query points, their scanline order, and 256 of them cycled (their paths stay in
+    /// cache): median seconds per query.
+    query: f64,
+    coherent: f64,
+    hot: f64,
+    /// Nodes visited per query over the random points: mean and max; the DAG's depth.
     mean_path: f64,
-    build_steps: u64,
+    max_path: usize,
+    depth: usize,
+    nodes: usize,
+    segments: u64,
+    located_nodes: u64,
+    created: u64,
+    destroyed: u64,
+}
+
+impl Row {
+    fn build_work(&self) -> u64 {
+        self.located_nodes + self.destroyed
+    }
+}
+
+/// Median seconds per query of `points` (each round answers all of them).
+fn time_queries(map: &TrapezoidalMap, points: &[DVec2]) -> f64 {
+    time_it(Duration::from_millis(400), || {
+        let mut inside = 0usize;
+        for p in points {
+            inside += usize::from(map.contains(black_box(*p)));
+        }
+        black_box(inside);
+    })
+    .as_secs_f64()
+        / points.len() as f64
 }
 
 fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
@@ -103,16 +132,7 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
             DVec2::new(next(), next())
         })
         .collect();
-    let rounds = 16;
-    let start = Instant::now();
-    let mut inside = 0usize;
-    for _ in 0..rounds {
-        for p in &points {
-            inside += usize::from(map.contains(black_box(*p)));
-        }
-    }
-    let secs = start.elapsed().as_secs_f64();
-    black_box(inside);
+    let query = time_queries(&map, &points);
     // The same points in scanline order (rows of 1/256): spatially coherent, like a solver's.
     let mut coherent = points.clone();
     coherent.sort_by(|a, b| {
@@ -120,29 +140,39 @@ fn measure(shape: &'static str, rings: Vec<Vec<DVec2>>) -> Row {
             .partial_cmp(&((b.y * 256.0) as u32, b.x))
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    let start = Instant::now();
-    for _ in 0..rounds {
-        for p in &coherent {
-            inside += usize::from(map.contains(black_box(*p)));
-        }
-    }
-    let coherent_secs = start.elapsed().as_secs_f64();
-    black_box(inside);
-    let mean_path = points
+    let coherent = time_queries(&map, &coherent);
+    let hot_points: Vec<DVec2> = points[..256]
+        .iter()
+        .cycle()
+        .take(points.len())
+        .copied()
+        .collect();
+    let hot = time_queries(&map, &hot_points);
+    let paths: Vec<usize> = points.iter().map(|p| map.search_path_length(*p)).collect();
+    let hot_path = hot_points[..256]
         .iter()
         .map(|p| map.search_path_length(*p) as f64)
         .sum::<f64>()
-        / points.len() as f64;
+        / 256.0;
+    let mean_path = paths.iter().sum::<usize>() as f64 / paths.len() as f64;
+    let stats = map.build_stats();
     Row {
         shape,
         edges,
         build,
         domain,
-        queries_per_s: (rounds * points.len()) as f64 / secs,
-        coherent_queries_per_s: (rounds * points.len()) as f64 / coherent_secs,
-        depth: map.depth(),
+        query,
+        coherent,
+        // Per node visited, scaled to the random points' mean path, so the columns compare.
+        hot: hot / hot_path * mean_path,
         mean_path,
-        build_steps: map.build_steps(),
+        max_path: paths.iter().copied().max().unwrap_or(0),
+        depth: map.depth(),
+        nodes: map.node_count(),
+        segments: stats.segments,
+        located_nodes: stats.located_nodes,
+        created: stats.created_trapezoids,
+        destroyed: stats.destroyed_trapezoids,
     }
 }
 
@@ -155,9 +185,9 @@ fn main() {
         measure("comb+holes", comb_with_holes(125)),
         measure("comb+holes", comb_with_holes(12_500)),
     ];
-    println!("trapezoidal map: construction and point location (median timings)");
+    println!("trapezoidal map: wall times (medians; noisy on a shared machine)");
     println!(
-        "{:<11} {:>7} {:>11} {:>11} {:>13} {:>11} {:>9} {:>12} {:>11} {:>10} {:>6}",
+        "{:<11} {:>7} {:>11} {:>11} {:>12} {:>10} {:>9} {:>9} {:>9} {:>9} {:>9}",
         "face",
         "edges",
         "build",
@@ -165,49 +195,89 @@ fn main() {
         "domain build",
         "queries/s",
         "ns/query",
-        "coherent q/s",
-        "steps/edge",
-        "mean path",
-        "depth"
+        "coherent",
+        "hot",
+        "ns/node",
+        "hot ns/nd"
     );
     for r in &rows {
         println!(
-            "{:<11} {:>7} {:>8.3} ms {:>8.1} ns {:>10.3} ms {:>11.3e} {:>9.1} {:>12.3e} {:>11.1} {:>10.1} {:>6}",
+            "{:<11} {:>7} {:>8.3} ms {:>8.1} ns {:>9.3} ms {:>10.3e} {:>9.1} {:>9.1} {:>9.1} {:>9.2} {:>9.2}",
             r.shape,
             r.edges,
             r.build.as_secs_f64() * 1e3,
             r.build.as_secs_f64() * 1e9 / r.edges as f64,
             r.domain.as_secs_f64() * 1e3,
-            r.queries_per_s,
-            1e9 / r.queries_per_s,
-            r.coherent_queries_per_s,
-            r.build_steps as f64 / r.edges as f64,
-            r.mean_path,
-            r.depth
+            1.0 / r.query,
+            r.query * 1e9,
+            r.coherent * 1e9,
+            r.hot * 1e9,
+            r.query * 1e9 / r.mean_path,
+            r.hot * 1e9 / r.mean_path
         );
     }
     println!();
+    println!("trapezoidal map: operation counts (exact, reproducible)");
     println!(
-        "ratios between sizes: wall time (includes cache misses) and work counts vs the model"
+        "{:<11} {:>7} {:>9} {:>9} {:>6} {:>10} {:>10} {:>10} {:>10} {:>10}",
+        "face",
+        "edges",
+        "mean path",
+        "max path",
+        "depth",
+        "DAG nodes",
+        "located/s",
+        "created/s",
+        "destroy/s",
+        "work/s"
     );
+    for r in &rows {
+        let per = |x: u64| x as f64 / r.segments as f64;
+        println!(
+            "{:<11} {:>7} {:>9.2} {:>9} {:>6} {:>10} {:>10.2} {:>10.2} {:>10.2} {:>10.2}",
+            r.shape,
+            r.edges,
+            r.mean_path,
+            r.max_path,
+            r.depth,
+            r.nodes,
+            per(r.located_nodes),
+            per(r.created),
+            per(r.destroyed),
+            per(r.build_work())
+        );
+    }
+    println!();
+    println!("ratios between sizes against the model (n log n build, log n query)");
     println!(
-        "{:<11} {:>15} {:>10} {:>11} {:>10} {:>11} {:>11} {:>8}",
-        "face", "sizes", "build", "build work", "n log n", "query time", "query path", "log n"
+        "{:<11} {:>15} {:>9} {:>10} {:>8} {:>9} {:>9} {:>9} {:>9} {:>7}",
+        "face",
+        "sizes",
+        "build",
+        "build work",
+        "n log n",
+        "query",
+        "hot query",
+        "mean path",
+        "max path",
+        "log n"
     );
     for group in rows.chunks(3) {
         for w in group.windows(2) {
             let (a, b) = (&w[0], &w[1]);
             let (na, nb) = (a.edges as f64, b.edges as f64);
             println!(
-                "{:<11} {:>7}->{:<7} {:>9.1}x {:>10.1}x {:>9.1}x {:>10.2}x {:>10.2}x {:>7.2}x",
+                "{:<11} {:>7}->{:<7} {:>8.1}x {:>9.1}x {:>7.1}x {:>8.2}x {:>8.2}x {:>8.2}x {:>8.2}x {:>6.2}x",
                 a.shape,
                 a.edges,
                 b.edges,
                 b.build.as_secs_f64() / a.build.as_secs_f64(),
-                b.build_steps as f64 / a.build_steps as f64,
+                b.build_work() as f64 / a.build_work() as f64,
                 (nb * nb.ln()) / (na * na.ln()),
-                a.queries_per_s / b.queries_per_s,
+                b.query / a.query,
+                b.hot / a.hot,
                 b.mean_path / a.mean_path,
+                b.max_path as f64 / a.max_path as f64,
                 nb.ln() / na.ln()
             );
         }

@@ -882,6 +882,33 @@ fn an_empty_map_is_all_outside_and_paths_are_bounded_by_the_depth() {
     assert!(map.build_steps() >= edges as u64);
 }
 
+/// Large maps have deep DAGs (the van Emde Boas layout recurses several levels): they still
+/// locate like the twin, and the construction's counts add up.
+#[test]
+fn large_maps_locate_like_the_twin_and_count_their_work() {
+    for (seed, n_outer, n_holes, snap) in [(21, 3000, 0, false), (22, 1500, 4, true)] {
+        let Some(rings) = random_polygon(seed, n_outer, n_holes, snap) else {
+            continue;
+        };
+        let map = TrapezoidalMap::new_checked(&rings).expect("map");
+        let stats = map.build_stats();
+        assert_eq!(stats.segments as usize, map.segment_count());
+        assert_eq!(
+            stats.created_trapezoids - stats.destroyed_trapezoids,
+            map.trapezoid_count() as u64
+        );
+        assert!(stats.located_nodes >= stats.segments);
+        assert_eq!(map.build_steps(), stats.steps());
+        assert!(map.node_count() <= 8 * map.segment_count());
+        assert!(map.depth() > 20, "depth {}", map.depth());
+        let mut rng = Rng(seed);
+        for p in query_points(&mut rng, &rings, 1500) {
+            assert_eq!(map.locate(p), twin_locate(&rings, p), "point {p:?}");
+            assert!(map.search_path_length(p) <= map.depth());
+        }
+    }
+}
+
 #[test]
 fn extreme_slivers_give_valid_domains() {
     // Width over length down to 1e-14: (s, t) of the vertices carry rounding errors far above

@@ -26,10 +26,11 @@
 //! returns a [`MapError`] rather than a wrong map when a check fails.
 //!
 //! Layout: construction works on a `Builder` (trapezoids with neighbour links, a DAG whose leaves
-//! are trapezoids). The finished map keeps only the search DAG, renumbered breadth-first from the
-//! root so its top levels share cache lines, with segment endpoints copied into the y-nodes and
-//! leaves reduced to an inside/outside tag in their parent's child slot: a query reads one node
-//! per level and nothing else.
+//! are trapezoids). The finished map keeps only the search DAG: 16-byte nodes (vertex indices and
+//! two child slots) in van Emde Boas order, so a search path crosses few cache lines and pages,
+//! leaves reduced to an inside/outside tag in their parent's child slot, and the segment endpoints
+//! in one array in order of first use by the nodes. A query reads one node per level and its one
+//! or two vertices.
 
 use super::predicates::{lex_less, orient};
 use glam::DVec2;
@@ -69,6 +70,9 @@ struct Segment {
     /// Lexicographically smaller endpoint.
     left: DVec2,
     right: DVec2,
+    /// Indices of `left` and `right` in the builder's vertex list.
+    left_vertex: u32,
+    right_vertex: u32,
     /// The face lies above the segment (it was directed left to right in its ring).
     interior_above: bool,
 }
@@ -98,6 +102,8 @@ enum Node {
     /// Left child: points lexicographically before `point`; right: after it.
     X {
         point: DVec2,
+        /// Index of `point` in the builder's vertex list.
+        vertex: u32,
         left: u32,
         right: u32,
     },
@@ -115,11 +121,13 @@ enum Node {
 /// The map under construction: trapezoids with their links and the search DAG (root: node 0).
 #[derive(Debug, Clone)]
 struct Builder {
+    /// Every ring vertex, in ring order (segments and x-nodes refer to them by index).
+    vertices: Vec<DVec2>,
     segments: Vec<Segment>,
     trapezoids: Vec<Trapezoid>,
     nodes: Vec<Node>,
-    /// DAG nodes visited locating segment starts plus trapezoids crossed: the construction's work.
-    steps: u64,
+    /// The construction's work, counted.
+    stats: BuildStats,
     // Scratch buffers of `insert`, reused across segments.
     crossed: Vec<u32>,
     upper_of: Vec<u32>,
@@ -130,35 +138,56 @@ struct Builder {
 const LEAF_OUTSIDE: u32 = u32::MAX - 1;
 /// A child slot naming a leaf inside the face.
 const LEAF_INSIDE: u32 = u32::MAX;
+/// A builder node not yet numbered in the finished DAG (`freeze`).
+const UNNUMBERED: u32 = u32::MAX - 2;
+/// Marks an x-node in [`SearchNode::a`].
+const X_NODE: u32 = 1 << 31;
 
-/// A node of the finished search DAG; children are node indices or a `LEAF_*` tag.
+/// A node of the finished search DAG, 16 bytes (four to a cache line). An x-node has
+/// `a = X_NODE | vertex` and children `[left of the vertex, right of it]`; a y-node is the segment
+/// from vertex `a` to vertex `b` (lexicographic order) with children `[above, below]`. Children are
+/// node indices or a `LEAF_*` tag.
 #[derive(Debug, Clone, Copy)]
-enum SearchNode {
-    X {
-        point: DVec2,
-        left: u32,
-        right: u32,
-    },
-    /// The segment `left -> right` (lexicographic order).
-    Y {
-        left: DVec2,
-        right: DVec2,
-        above: u32,
-        below: u32,
-    },
+struct SearchNode {
+    a: u32,
+    b: u32,
+    children: [u32; 2],
+}
+
+/// The work of one construction, counted (independent of the memory hierarchy).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct BuildStats {
+    /// Segments inserted.
+    pub segments: u64,
+    /// DAG nodes visited locating the segments' left endpoints (leaves included): O(n log n)
+    /// expected in all.
+    pub located_nodes: u64,
+    /// Trapezoids crossed by the inserted segments, each replaced (destroyed): O(n) expected.
+    pub destroyed_trapezoids: u64,
+    /// Trapezoids created (the initial one included): O(n) expected.
+    pub created_trapezoids: u64,
+}
+
+impl BuildStats {
+    /// DAG nodes visited plus trapezoids crossed.
+    pub fn steps(&self) -> u64 {
+        self.located_nodes + self.destroyed_trapezoids
+    }
 }
 
 /// A trapezoidal map's point-location structure.
 #[derive(Debug, Clone)]
 pub struct TrapezoidalMap {
-    /// Breadth-first from the root, `nodes[0]` (empty when the root is a leaf).
+    /// In van Emde Boas order from the root, `nodes[0]` (empty when the root is a leaf).
     nodes: Vec<SearchNode>,
+    /// The segment endpoints the nodes refer to, in order of first use by `nodes`.
+    vertices: Vec<DVec2>,
     /// The root's slot: 0, or a `LEAF_*` tag for a map without segments.
     root: u32,
     segment_count: usize,
     trapezoid_count: usize,
     depth: usize,
-    build_steps: u64,
+    stats: BuildStats,
 }
 
 /// SplitMix64: a tiny, good-enough generator for the shuffle.
@@ -211,7 +240,17 @@ impl TrapezoidalMap {
     /// DAG nodes visited and trapezoids crossed while building: the construction's work
     /// (O(n log n) expected), independent of the memory hierarchy.
     pub fn build_steps(&self) -> u64 {
-        self.build_steps
+        self.stats.steps()
+    }
+
+    /// The construction's work, itemised.
+    pub fn build_stats(&self) -> BuildStats {
+        self.stats
+    }
+
+    /// Nodes of the search DAG (leaves not counted).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
     }
 
     /// Where `p` lies: inside, outside or exactly on the boundary. Non-finite points are outside.
@@ -242,26 +281,22 @@ impl TrapezoidalMap {
                 _ => {}
             }
             visited += 1;
-            match self.nodes[slot as usize] {
-                SearchNode::X { point, left, right } => {
-                    if p == point {
-                        return (Location::Boundary, visited);
-                    }
-                    slot = if lex_less(p, point) { left } else { right };
+            let node = self.nodes[slot as usize];
+            if node.a & X_NODE != 0 {
+                let point = self.vertices[(node.a & !X_NODE) as usize];
+                if p == point {
+                    return (Location::Boundary, visited);
                 }
-                SearchNode::Y {
-                    left,
-                    right,
-                    above,
-                    below,
-                } => {
-                    let o = orient(left, right, p);
-                    if o == 0.0 {
-                        // The point is within the segment's x-range (the node's region is).
-                        return (Location::Boundary, visited);
-                    }
-                    slot = if o > 0.0 { above } else { below };
+                slot = node.children[usize::from(!lex_less(p, point))];
+            } else {
+                let left = self.vertices[node.a as usize];
+                let right = self.vertices[node.b as usize];
+                let o = orient(left, right, p);
+                if o == 0.0 {
+                    // The point is within the segment's x-range (the node's region is).
+                    return (Location::Boundary, visited);
                 }
+                slot = node.children[usize::from(o < 0.0)];
             }
         }
     }
@@ -269,9 +304,17 @@ impl TrapezoidalMap {
 
 impl Builder {
     fn build(rings: &[Vec<DVec2>]) -> Result<Self, MapError> {
+        // Three trapezoids and about seven nodes per segment, with room for the dead ones; vertex
+        // indices below `X_NODE`.
+        if rings.iter().map(Vec::len).sum::<usize>() > (u32::MAX as usize) / 16 {
+            return Err(MapError::TooLarge);
+        }
         let mut segments = Vec::new();
+        let mut vertices = Vec::new();
         for ring in rings {
             let n = ring.len();
+            let base = vertices.len() as u32;
+            vertices.extend_from_slice(ring);
             for i in 0..n {
                 let (a, b) = (ring[i], ring[(i + 1) % n]);
                 if !a.is_finite() || !b.is_finite() {
@@ -280,28 +323,32 @@ impl Builder {
                 if a == b {
                     continue;
                 }
+                let (ia, ib) = (base + i as u32, base + ((i + 1) % n) as u32);
                 let interior_above = lex_less(a, b);
-                let (left, right) = if interior_above { (a, b) } else { (b, a) };
+                let (left, right, left_vertex, right_vertex) = if interior_above {
+                    (a, b, ia, ib)
+                } else {
+                    (b, a, ib, ia)
+                };
                 segments.push(Segment {
                     left,
                     right,
+                    left_vertex,
+                    right_vertex,
                     interior_above,
                 });
             }
-        }
-        // Three trapezoids and about seven nodes per segment, with room for the dead ones.
-        if segments.len() > (u32::MAX as usize) / 16 {
-            return Err(MapError::TooLarge);
         }
         let mut rng = SplitMix64(SHUFFLE_SEED);
         for i in (1..segments.len()).rev() {
             segments.swap(i, rng.below(i + 1));
         }
         let mut map = Builder {
+            vertices,
             segments: Vec::with_capacity(segments.len()),
             trapezoids: Vec::with_capacity(4 * segments.len() + 1),
             nodes: Vec::with_capacity(8 * segments.len() + 1),
-            steps: 0,
+            stats: BuildStats::default(),
             crossed: Vec::new(),
             upper_of: Vec::new(),
             lower_of: Vec::new(),
@@ -325,77 +372,89 @@ impl Builder {
         Ok(map)
     }
 
-    /// The finished map: the DAG renumbered breadth-first, leaves folded into their parents.
+    /// The finished map: leaves folded into their parents' child slots as inside/outside tags,
+    /// internal nodes renumbered in van Emde Boas order (see [`veb_order`]), vertices renumbered
+    /// in order of first use.
     fn freeze(self) -> TrapezoidalMap {
-        let leaf_tag = |node: &Node| match *node {
-            Node::Leaf { trapezoid } => Some(if self.inside(trapezoid) {
-                LEAF_INSIDE
-            } else {
-                LEAF_OUTSIDE
-            }),
-            _ => None,
+        // One pass in creation order (leaves and their trapezoids were created together, so this
+        // reads the trapezoids nearly sequentially): a leaf's slot is its tag.
+        let mut slot: Vec<u32> = self
+            .nodes
+            .iter()
+            .map(|node| match *node {
+                Node::Leaf { trapezoid } if self.inside(trapezoid) => LEAF_INSIDE,
+                Node::Leaf { .. } => LEAF_OUTSIDE,
+                _ => UNNUMBERED,
+            })
+            .collect();
+        let children = |n: u32| match self.nodes[n as usize] {
+            Node::X { left, right, .. } => [left, right],
+            Node::Y { above, below, .. } => [above, below],
+            Node::Leaf { .. } => unreachable!("leaves are tagged"),
         };
-        let mut new_id = vec![NONE; self.nodes.len()];
-        let mut order: Vec<u32> = Vec::with_capacity(self.nodes.len());
-        let root = match leaf_tag(&self.nodes[0]) {
-            Some(tag) => tag,
-            None => {
-                new_id[0] = 0;
-                order.push(0);
-                0
-            }
+        let order = if slot[0] == UNNUMBERED {
+            let depth = longest_path(
+                self.nodes.len(),
+                0,
+                |n| slot[n as usize] != UNNUMBERED,
+                children,
+            );
+            veb_order(0, depth, &mut slot, children)
+        } else {
+            Vec::new()
         };
-        // Breadth-first numbering of the internal nodes.
-        let mut head = 0;
-        while head < order.len() {
-            let old = order[head] as usize;
-            head += 1;
-            let children = match self.nodes[old] {
-                Node::X { left, right, .. } => [left, right],
-                Node::Y { above, below, .. } => [above, below],
-                Node::Leaf { .. } => continue,
-            };
-            for c in children {
-                if leaf_tag(&self.nodes[c as usize]).is_none() && new_id[c as usize] == NONE {
-                    new_id[c as usize] = order.len() as u32;
-                    order.push(c);
-                }
+        let root = if order.is_empty() { slot[0] } else { 0 };
+        let mut vertex_id = vec![UNNUMBERED; self.vertices.len()];
+        let mut vertices = Vec::new();
+        let mut vertex = |v: u32| {
+            if vertex_id[v as usize] == UNNUMBERED {
+                vertex_id[v as usize] = vertices.len() as u32;
+                vertices.push(self.vertices[v as usize]);
             }
-        }
-        let slot = |c: u32| leaf_tag(&self.nodes[c as usize]).unwrap_or(new_id[c as usize]);
+            vertex_id[v as usize]
+        };
         let nodes: Vec<SearchNode> = order
             .iter()
-            .filter_map(|&old| match self.nodes[old as usize] {
-                Node::X { point, left, right } => Some(SearchNode::X {
-                    point,
-                    left: slot(left),
-                    right: slot(right),
-                }),
+            .map(|&old| match self.nodes[old as usize] {
+                Node::X {
+                    vertex: v,
+                    left,
+                    right,
+                    ..
+                } => SearchNode {
+                    a: X_NODE | vertex(v),
+                    b: 0,
+                    children: [slot[left as usize], slot[right as usize]],
+                },
                 Node::Y {
                     segment,
                     above,
                     below,
                 } => {
                     let s = &self.segments[segment as usize];
-                    Some(SearchNode::Y {
-                        left: s.left,
-                        right: s.right,
-                        above: slot(above),
-                        below: slot(below),
-                    })
+                    SearchNode {
+                        a: vertex(s.left_vertex),
+                        b: vertex(s.right_vertex),
+                        children: [slot[above as usize], slot[below as usize]],
+                    }
                 }
-                Node::Leaf { .. } => None,
+                Node::Leaf { .. } => unreachable!("leaves are tagged"),
             })
             .collect();
-        debug_assert_eq!(nodes.len(), order.len());
-        let depth = longest_path(&nodes, root);
+        let depth = longest_path(
+            nodes.len(),
+            root,
+            |n| n >= LEAF_OUTSIDE,
+            |n| nodes[n as usize].children,
+        );
         TrapezoidalMap {
             nodes,
+            vertices,
             root,
             segment_count: self.segments.len(),
             trapezoid_count: self.trapezoids.iter().filter(|t| t.alive).count(),
             depth,
-            build_steps: self.steps,
+            stats: self.stats,
         }
     }
 
@@ -407,6 +466,7 @@ impl Builder {
 
     fn new_trapezoid(&mut self, mut t: Trapezoid) -> u32 {
         let id = self.trapezoids.len() as u32;
+        self.stats.created_trapezoids += 1;
         t.leaf = self.nodes.len() as u32;
         self.nodes.push(Node::Leaf { trapezoid: id });
         self.trapezoids.push(t);
@@ -423,9 +483,11 @@ impl Builder {
     fn locate_start(&mut self, p: DVec2, q: DVec2) -> Result<u32, MapError> {
         let mut node = 0u32;
         loop {
-            self.steps += 1;
+            self.stats.located_nodes += 1;
             match self.nodes[node as usize] {
-                Node::X { point, left, right } => {
+                Node::X {
+                    point, left, right, ..
+                } => {
                     // A shared endpoint goes right: the new segment extends to the right.
                     node = if lex_less(p, point) { left } else { right };
                 }
@@ -533,7 +595,8 @@ impl Builder {
             debug_assert!(self.trap(next).alive && self.trap(next).leftp == Some(r));
             crossed.push(next);
         }
-        self.steps += crossed.len() as u64;
+        self.stats.segments += 1;
+        self.stats.destroyed_trapezoids += crossed.len() as u64;
 
         let first = crossed[0];
         let last = crossed[crossed.len() - 1];
@@ -687,6 +750,7 @@ impl Builder {
                     let right = self.trap(b).leaf;
                     top = Node::X {
                         point: q,
+                        vertex: s.right_vertex,
                         left: y,
                         right,
                     };
@@ -698,6 +762,7 @@ impl Builder {
                     let left = self.trap(a).leaf;
                     top = Node::X {
                         point: p,
+                        vertex: s.left_vertex,
                         left,
                         right: inner,
                     };
@@ -834,17 +899,19 @@ fn segments_conflict(p: DVec2, q: DVec2, a: DVec2, b: DVec2) -> Result<(), MapEr
     }
 }
 
-/// Nodes on the longest path from `root` to a leaf (memoised; children precede nothing in
-/// particular in a DAG, so a post-order walk with a stack).
-fn longest_path(nodes: &[SearchNode], root: u32) -> usize {
-    if root >= LEAF_OUTSIDE {
+/// Nodes on the longest path from `root` to a leaf, in a DAG given by `children`, where `is_leaf`
+/// tells leaves (not counted) from internal nodes, indexed `0..count` (memoised post-order walk
+/// with a stack).
+fn longest_path(
+    count: usize,
+    root: u32,
+    is_leaf: impl Fn(u32) -> bool,
+    children: impl Fn(u32) -> [u32; 2],
+) -> usize {
+    if is_leaf(root) {
         return 0;
     }
-    let children = |n: u32| match nodes[n as usize] {
-        SearchNode::X { left, right, .. } => [left, right],
-        SearchNode::Y { above, below, .. } => [above, below],
-    };
-    let mut depth = vec![0usize; nodes.len()];
+    let mut depth = vec![0usize; count];
     let mut stack = vec![(root, false)];
     while let Some((n, expanded)) = stack.pop() {
         if depth[n as usize] > 0 {
@@ -854,24 +921,68 @@ fn longest_path(nodes: &[SearchNode], root: u32) -> usize {
         if expanded {
             let d = kids
                 .iter()
-                .map(|&c| {
-                    if c >= LEAF_OUTSIDE {
-                        0
-                    } else {
-                        depth[c as usize]
-                    }
-                })
+                .map(|&c| if is_leaf(c) { 0 } else { depth[c as usize] })
                 .max()
                 .unwrap_or(0);
             depth[n as usize] = d + 1;
         } else {
             stack.push((n, true));
             for c in kids {
-                if c < LEAF_OUTSIDE && depth[c as usize] == 0 {
+                if !is_leaf(c) && depth[c as usize] == 0 {
                     stack.push((c, false));
                 }
             }
         }
     }
     depth[root as usize]
+}
+
+/// Numbers the internal nodes reachable from `root` (those whose `slot` is [`UNNUMBERED`]) in van
+/// Emde Boas order, writing each one's new index into `slot` and returning the old indices in the
+/// new order. A subtree of height `h` is laid out as its top `h/2` levels, then each subtree
+/// hanging below them, recursively: a root-to-leaf path crosses O(log_B n) blocks of B
+/// consecutive nodes for every block size B at once (cache lines, pages). In a DAG a node shared
+/// by several subtrees goes with the first that reaches it. `height` is the DAG's depth.
+fn veb_order(
+    root: u32,
+    height: usize,
+    slot: &mut [u32],
+    children: impl Fn(u32) -> [u32; 2],
+) -> Vec<u32> {
+    fn lay(
+        n: u32,
+        h: usize,
+        slot: &mut [u32],
+        order: &mut Vec<u32>,
+        children: &impl Fn(u32) -> [u32; 2],
+    ) {
+        if slot[n as usize] != UNNUMBERED {
+            return; // a leaf, or numbered through another parent
+        }
+        if h <= 1 {
+            slot[n as usize] = order.len() as u32;
+            order.push(n);
+            return;
+        }
+        let top = h / 2;
+        let start = order.len();
+        lay(n, top, slot, order, children);
+        // Children of the top part still unnumbered hang just below it.
+        for k in start..order.len() {
+            for c in children(order[k]) {
+                lay(c, h - top, slot, order, children);
+            }
+        }
+    }
+    let mut order = Vec::new();
+    lay(root, height.max(1), slot, &mut order, &children);
+    // Nothing is deeper than `height`; this pass only guards that invariant.
+    let mut k = 0;
+    while k < order.len() {
+        for c in children(order[k]) {
+            lay(c, height.max(1), slot, &mut order, &children);
+        }
+        k += 1;
+    }
+    order
 }
