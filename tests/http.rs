@@ -879,6 +879,9 @@ async fn a_running_job_on_a_large_scene_is_cancelled_within_two_seconds() {
     println!("cancelled after {latency:?}: {}", end["progress"]);
     assert!(latency < Duration::from_secs(2), "took {latency:?}");
     assert_eq!(end["stop_reason"], "cancelled");
+    // The interrupted shot is reported as the last progress (the solver counts it as an
+    // iteration), so the end state cannot tell an interrupted shot from a finished one; what
+    // shows the cancel landed mid-shot is `before` (no shot done yet) and the latency.
 }
 
 /// A finished job deleted goes with its files; `--retain-jobs` deletes the oldest beyond N.
@@ -1188,51 +1191,76 @@ async fn events_stream_progress_then_done() {
     error_of(missing, StatusCode::NOT_FOUND).await;
 }
 
-/// With a token every /v1 route needs it; /healthz and /metrics stay open.
+/// With a token every /v1 route needs it (every operation of the route table, each method, plus
+/// an unknown /v1 path); /healthz and /metrics stay open.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bearer_token_guards_every_v1_route() {
     let mut config = ServiceConfig::new(data_dir("auth"));
     config.api_token = Some("s3cret-token".into());
     let base = start(config).await;
     let client = client();
-    for path in [
-        "/v1/jobs",
-        "/v1/openapi.json",
-        "/v1/jobs/0000000000000000",
-        "/v1/nope",
-    ] {
-        let response = client.get(format!("{base}{path}")).send().await.unwrap();
-        assert_eq!(response.headers()["www-authenticate"], "Bearer");
-        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
-        assert_eq!(error["code"], "unauthorized", "{path}");
-        assert!(error["message"].as_str().unwrap().contains("Bearer"));
-        let wrong = client
-            .get(format!("{base}{path}"))
-            .bearer_auth("s3cret-tokeN")
-            .send()
-            .await
-            .unwrap();
-        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+    let mut operations: Vec<(reqwest::Method, String)> = Vec::new();
+    for route in wavrad::service::api_routes(1) {
+        let method = reqwest::Method::from_bytes(route.method.as_str().as_bytes()).unwrap();
+        for path in route.documented {
+            let path = path.replace("{id}", "0000000000000000").replace("{n}", "1");
+            operations.push((method.clone(), path));
+        }
     }
-    let post = client
-        .post(format!("{base}/v1/jobs?order=1"))
-        .header("content-type", "model/gltf-binary")
-        .body(small_scene(0.5))
-        .send()
-        .await
-        .unwrap();
-    error_of(post, StatusCode::UNAUTHORIZED).await;
-    let ok = client
-        .get(format!("{base}/v1/jobs"))
-        .bearer_auth("s3cret-token")
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(ok.status(), StatusCode::OK);
+    operations.push((reqwest::Method::GET, "/v1/nope".into()));
+    operations.push((reqwest::Method::PUT, "/v1/jobs".into()));
+    let guarded: Vec<_> = operations
+        .iter()
+        .filter(|(_, p)| p.starts_with("/v1/"))
+        .collect();
+    assert!(guarded.len() >= 12, "{guarded:?}");
+    for (method, path) in &guarded {
+        let url = format!("{base}{path}");
+        let request = || {
+            let r = client.request(method.clone(), &url);
+            if *method == reqwest::Method::POST {
+                r.header("content-type", "model/gltf-binary")
+                    .body(small_scene(0.5))
+            } else {
+                r
+            }
+        };
+        let response = request().send().await.unwrap();
+        assert_eq!(
+            response
+                .headers()
+                .get("www-authenticate")
+                .map(|v| v.as_bytes()),
+            Some(&b"Bearer"[..]),
+            "{method} {path}"
+        );
+        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
+        assert_eq!(error["code"], "unauthorized", "{method} {path}");
+        assert!(error["message"].as_str().unwrap().contains("Bearer"));
+        let wrong = request().bearer_auth("s3cret-tokeN").send().await.unwrap();
+        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+        let right = request().bearer_auth("s3cret-token").send().await.unwrap();
+        assert_ne!(
+            right.status(),
+            StatusCode::UNAUTHORIZED,
+            "{method} {path} with the token"
+        );
+    }
     for open in ["/healthz", "/metrics"] {
         let r = client.get(format!("{base}{open}")).send().await.unwrap();
         assert_eq!(r.status(), StatusCode::OK, "{open}");
     }
+    // The one POST made with the token was accepted; nothing else created a job.
+    let list: Value = client
+        .get(format!("{base}/v1/jobs"))
+        .bearer_auth("s3cret-token")
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
 }
 
 /// `/metrics` is Prometheus text, every series `wavrad_*`, counting what happened.
@@ -1296,6 +1324,88 @@ async fn malformed_files_get_4xx_and_the_server_stays_up() {
         .collect();
     files.sort();
     assert!(files.len() >= 25, "the corpus is there: {}", files.len());
+    // Each hostile shape the service must refuse, by category (issue 6), in both containers
+    // where it applies.
+    let categories: [(&str, &[&str]); 8] = [
+        (
+            "truncated",
+            &[
+                "truncated.glb",
+                "truncated_header.glb",
+                "truncated.gltf",
+                "empty.glb",
+            ],
+        ),
+        ("wrong magic", &["wrong_magic.glb", "wrong_version.glb"]),
+        (
+            "huge counts",
+            &[
+                "huge_accessor_count.gltf",
+                "huge_accessor_count.glb",
+                "huge_buffer_byte_length.gltf",
+                "huge_chunk_count.glb",
+                "length_lies.glb",
+                "json_chunk_length_lies.glb",
+            ],
+        ),
+        (
+            "cyclic node graphs",
+            &[
+                "cyclic_nodes.gltf",
+                "cyclic_nodes.glb",
+                "self_child_node.gltf",
+                "shared_children_nodes.gltf",
+            ],
+        ),
+        (
+            "NaN",
+            &[
+                "nan_positions.gltf",
+                "nan_positions.glb",
+                "nan_emission.gltf",
+                "inf_positions.gltf",
+                "inf_emission.gltf",
+                "inf_emission_strength.gltf",
+                "inf_light_intensity.gltf",
+                "huge_translation.gltf",
+            ],
+        ),
+        (
+            "missing buffers",
+            &[
+                "missing_buffer.gltf",
+                "no_buffers.gltf",
+                "buffer_without_uri.gltf",
+                "missing_bin_chunk.glb",
+                "bin_chunk_shorter_than_buffer.glb",
+            ],
+        ),
+        (
+            "data URIs lying about their size",
+            &[
+                "data_uri_shorter_than_declared.gltf",
+                "data_uri_longer_than_declared.gltf",
+            ],
+        ),
+        (
+            "fuzz crashes",
+            &[
+                "fuzz_accessor_count_zero.glb",
+                "fuzz_position_accessor_out_of_range.gltf",
+                "fuzz_position_accessor_vec2.gltf",
+                "float_indices.gltf",
+                "position_accessor_vec4_u8.gltf",
+            ],
+        ),
+    ];
+    for (category, names) in categories {
+        for name in names {
+            assert!(
+                files.iter().any(|f| f.ends_with(name)),
+                "{category}: {name} is in the corpus"
+            );
+        }
+    }
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let content_type = match path.extension().and_then(|e| e.to_str()) {

@@ -74,8 +74,9 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
 pub const SHUTDOWN_SOLVE_WAIT: Duration = Duration::from_secs(30);
 /// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
 pub const DEFAULT_MAX_IN_FLIGHT: usize = 1024;
-/// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
-pub const MAX_CONCURRENT_UPLOADS: usize = 4;
+/// Scene uploads buffered and checked at once: bounds their memory to this many bodies (each at
+/// most `max_body_bytes`); further uploads wait for a slot.
+pub const DEFAULT_MAX_CONCURRENT_UPLOADS: usize = 4;
 
 /// Settings of the service (CONTRACT `wavrad serve` options).
 #[derive(Clone, PartialEq, Eq)]
@@ -104,6 +105,9 @@ pub struct ServiceConfig {
     pub max_in_flight: usize,
     /// Longest a request may take, upload included; beyond it 408.
     pub request_timeout: Duration,
+    /// Scene uploads received and checked at once; more wait for a slot (within the request
+    /// timeout).
+    pub max_concurrent_uploads: usize,
 }
 
 impl std::fmt::Debug for ServiceConfig {
@@ -120,6 +124,7 @@ impl std::fmt::Debug for ServiceConfig {
             .field("api_token", &self.api_token.as_ref().map(|_| "<set>"))
             .field("max_in_flight", &self.max_in_flight)
             .field("request_timeout", &self.request_timeout)
+            .field("max_concurrent_uploads", &self.max_concurrent_uploads)
             .finish()
     }
 }
@@ -139,6 +144,7 @@ impl ServiceConfig {
             api_token: None,
             max_in_flight: DEFAULT_MAX_IN_FLIGHT,
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
+            max_concurrent_uploads: DEFAULT_MAX_CONCURRENT_UPLOADS,
         }
     }
 
@@ -161,6 +167,9 @@ impl ServiceConfig {
         }
         if self.max_in_flight == 0 {
             return Err("--max-in-flight must be at least 1".into());
+        }
+        if self.max_concurrent_uploads == 0 {
+            return Err("--max-concurrent-uploads must be at least 1".into());
         }
         if self.request_timeout.is_zero() {
             return Err("--request-timeout-seconds must be at least 1".into());
@@ -228,12 +237,13 @@ impl AppState {
         let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
         let max_in_flight = config.max_in_flight;
+        let max_uploads = config.max_concurrent_uploads;
         let state = AppState {
             inner: Arc::new(Shared {
                 jobs,
                 config,
                 store,
-                upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
+                upload_permits: Semaphore::new(max_uploads),
                 in_flight: Arc::new(Semaphore::new(max_in_flight)),
                 keyed_submissions: tokio::sync::Mutex::new(()),
                 metrics: metrics::Metrics::default(),
