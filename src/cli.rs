@@ -164,6 +164,12 @@ pub struct ServeArgs {
     /// Scene uploads received and checked at once (bounds their memory); more wait.
     #[arg(long, env = "WAVRAD_MAX_CONCURRENT_UPLOADS", default_value_t = crate::service::DEFAULT_MAX_CONCURRENT_UPLOADS)]
     pub max_concurrent_uploads: usize,
+    /// Most recent succeeded jobs whose solution stays in memory for POST /v1/jobs/{id}/probes.
+    #[arg(long, env = "WAVRAD_PROBE_CACHE_JOBS", default_value_t = crate::service::DEFAULT_PROBE_CACHE_JOBS)]
+    pub probe_cache_jobs: usize,
+    /// Probe points accepted in one probe request; beyond it 400.
+    #[arg(long, env = "WAVRAD_MAX_PROBES", default_value_t = crate::service::DEFAULT_MAX_PROBES)]
+    pub max_probes: usize,
 }
 
 fn init_logging(format: &str) {
@@ -365,6 +371,8 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.max_in_flight = a.max_in_flight;
     config.request_timeout = std::time::Duration::from_secs(a.request_timeout_seconds);
     config.max_concurrent_uploads = a.max_concurrent_uploads;
+    config.probe_cache_jobs = a.probe_cache_jobs;
+    config.max_probes = a.max_probes;
     if let Err(e) = config.validate() {
         return bad_input(e);
     }

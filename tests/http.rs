@@ -1494,3 +1494,116 @@ async fn busy_timeout_and_internal_errors_are_json() {
     let health = client.get(format!("{base}/healthz")).send().await.unwrap();
     assert_eq!(health.status(), StatusCode::OK);
 }
+
+/// `POST /v1/jobs/{id}/probes` evaluates a succeeded job's solution at the given points (the
+/// emitting wall shows at least its own emission, a point in mid-air has no value); bad bodies
+/// are 400, unfinished jobs 409, and a job whose solution left memory (`--probe-cache-jobs`) is a
+/// 409 that says what to do.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn probes_are_evaluated_on_a_succeeded_job() {
+    let mut config = ServiceConfig::new(data_dir("probes"));
+    config.probe_cache_jobs = 1;
+    config.max_probes = 3;
+    let base = start(config).await;
+    let client = client();
+    let probe = |id: &str, body: Value| {
+        client
+            .post(format!("{base}/v1/jobs/{id}/probes"))
+            .header("content-type", "application/json")
+            .body(body.to_string())
+            .send()
+    };
+    let first = submit_ok(&client, &base, "order=2", small_scene(0.5)).await;
+    let first = first["id"].as_str().unwrap().to_string();
+    wait_for(&client, &base, &first, "succeeded", Duration::from_secs(60)).await;
+
+    let points = json!([
+        {"p": [0.0, 0.5, 0.5], "n": [1.0, 0.0, 0.0]},
+        {"p": [1.0, 0.25, 0.75], "n": [-1.0, 0.0, 0.0]},
+        {"p": [0.5, 0.5, 0.5], "n": [0.0, 0.0, 1.0]}
+    ]);
+    let response = probe(&first, points.clone()).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let values: Value = response.json().await.unwrap();
+    println!("probe values: {values}");
+    let values = values.as_array().unwrap();
+    assert_eq!(values.len(), 3);
+    let l = |i: usize| -> Vec<f64> {
+        values[i]["L"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    // The lamp (L_e = 1) shows its emission plus what it reflects; the opposite wall only light.
+    assert!(
+        l(0).iter().all(|v| *v >= 1.0 && v.is_finite()),
+        "{values:?}"
+    );
+    assert!(l(1).iter().all(|v| *v > 0.0 && *v < 1.0), "{values:?}");
+    assert!(values[0]["face"].is_u64() && values[1]["face"].is_u64());
+    assert_ne!(values[0]["face"], values[1]["face"]);
+    assert!(values[2]["L"].is_null() && values[2]["error"].is_string());
+
+    for bad in [
+        json!({"p": [0, 0, 0]}),
+        json!([{"p": [0, 0, 0], "n": [0, 0, 0]}]),
+    ] {
+        let response = probe(&first, bad).await.unwrap();
+        assert_eq!(
+            error_of(response, StatusCode::BAD_REQUEST).await["code"],
+            "bad_probes"
+        );
+    }
+    let four = json!([points[0], points[1], points[2], points[0]]);
+    let response = probe(&first, four).await.unwrap();
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    assert_eq!(error["code"], "too_many_probes");
+    assert!(error["message"].as_str().unwrap().contains("--max-probes"));
+    let response = probe("0000000000000000", points.clone()).await.unwrap();
+    error_of(response, StatusCode::NOT_FOUND).await;
+
+    // A running job has no solution to probe yet.
+    let busy = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=20",
+        never_converging_scene(),
+    )
+    .await;
+    let busy = busy["id"].as_str().unwrap().to_string();
+    let response = probe(&busy, points.clone()).await.unwrap();
+    assert_eq!(
+        error_of(response, StatusCode::CONFLICT).await["code"],
+        "job_not_succeeded"
+    );
+    let response = client
+        .delete(format!("{base}/v1/jobs/{busy}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    wait_for(&client, &base, &busy, "cancelled", Duration::from_secs(10)).await;
+
+    // With --probe-cache-jobs 1, the next succeeded job's solution replaces the first's.
+    let second = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let second = second["id"].as_str().unwrap().to_string();
+    wait_for(
+        &client,
+        &base,
+        &second,
+        "succeeded",
+        Duration::from_secs(60),
+    )
+    .await;
+    let response = probe(&second, points.clone()).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let response = probe(&first, points).await.unwrap();
+    let error = error_of(response, StatusCode::CONFLICT).await;
+    assert_eq!(error["code"], "solution_not_in_memory");
+    assert!(error["message"]
+        .as_str()
+        .unwrap()
+        .contains("--probe-cache-jobs"));
+}
