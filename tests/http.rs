@@ -1246,7 +1246,7 @@ async fn bearer_token_guards_every_v1_route() {
             "{method} {path} with the token"
         );
     }
-    for open in ["/healthz", "/metrics"] {
+    for open in ["/healthz", "/metrics", "/"] {
         let r = client.get(format!("{base}{open}")).send().await.unwrap();
         assert_eq!(r.status(), StatusCode::OK, "{open}");
     }
@@ -1297,6 +1297,28 @@ async fn metrics_count_jobs_and_solves() {
             .or_else(|| line.strip_prefix("# TYPE "))
             .unwrap_or(line);
         assert!(name.starts_with("wavrad_"), "{line}");
+    }
+    // Every series the README lists is there, with its type.
+    for name in [
+        "wavrad_jobs",
+        "wavrad_queue_depth",
+        "wavrad_queue_capacity",
+        "wavrad_running_elements",
+        "wavrad_running_shots",
+        "wavrad_solves_total",
+        "wavrad_solve_seconds_total",
+        "wavrad_shots_total",
+        "wavrad_elements_total",
+        "wavrad_rays_total",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with(&format!("# TYPE {name} "))),
+            "{name} in\n{text}"
+        );
+    }
+    for state in ["queued", "running", "succeeded", "failed", "cancelled"] {
+        value(&format!("wavrad_jobs{{state=\"{state}\"}}"));
     }
     assert_eq!(value("wavrad_jobs{state=\"succeeded\"}"), 1.0);
     assert_eq!(value("wavrad_jobs{state=\"queued\"}"), 0.0);
@@ -1606,4 +1628,31 @@ async fn probes_are_evaluated_on_a_succeeded_job() {
         .as_str()
         .unwrap()
         .contains("--probe-cache-jobs"));
+}
+
+/// `GET /` is the dashboard: a self-contained HTML page that reads `GET /v1/jobs`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_dashboard_page_is_served() {
+    let base = start(ServiceConfig::new(data_dir("dashboard"))).await;
+    let response = client().get(format!("{base}/")).send().await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .starts_with("text/html"));
+    assert!(response.headers()["content-security-policy"]
+        .to_str()
+        .unwrap()
+        .contains("connect-src 'self'"));
+    let page = response.text().await.unwrap();
+    assert!(page.starts_with("<!doctype html>"));
+    assert!(page.contains("fetch(\"/v1/jobs\""), "it polls the job list");
+    assert!(
+        !page.contains("innerHTML"),
+        "server data is inserted as text only"
+    );
+    assert!(
+        !page.contains("http://") && !page.contains("https://"),
+        "no external resources"
+    );
 }

@@ -15,7 +15,7 @@
 //!   `queued`, end event streams, then return.
 //! - [`metrics`]: `/metrics` in Prometheus text.
 //!
-//! Not yet: the dashboard page `GET /`.
+//! `GET /` is a small dashboard page (no external resources) that polls `GET /v1/jobs`.
 
 pub mod error;
 pub mod extract;
@@ -430,6 +430,7 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
         }
     }
     vec![
+        route("/", Method::GET, &["/"], get(routes::dashboard)),
         route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
         route("/metrics", Method::GET, &["/metrics"], get(routes::metrics)),
         route(

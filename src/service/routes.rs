@@ -132,6 +132,29 @@ pub async fn job_events(
         .into_response())
 }
 
+/// The dashboard page, embedded at build time.
+const DASHBOARD_HTML: &str = include_str!("assets/dashboard.html");
+
+/// `GET /`: the dashboard, a page that lists the jobs (polling `GET /v1/jobs`, with the API token
+/// when one is typed in), their progress, links to their outputs and a cancel button.
+pub async fn dashboard() -> Response {
+    let mut response = Response::new(Body::from(DASHBOARD_HTML));
+    let headers = response.headers_mut();
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/html; charset=utf-8"),
+    );
+    // Only its own inline script and style, and requests to this server.
+    headers.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; \
+             connect-src 'self'; img-src 'self'",
+        ),
+    );
+    response
+}
+
 /// `GET /healthz`.
 pub async fn healthz() -> Json<serde_json::Value> {
     Json(serde_json::json!({"status": "ok"}))
