@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Load benchmark of `wavrad serve` on loopback (needs `wrk`: apt-get install -y wrk).
 #
-#   bench/load.sh                      # builds target/release/wavrad if needed
+#   bench/load.sh                      # builds the release binary if needed (honours CARGO_TARGET_DIR)
 #   WAVRAD_BIN=target/debug/wavrad bench/load.sh
 #
 # 1. starts the server on a free port with a fresh data dir (--max-queued $MAX_QUEUED);
@@ -13,7 +13,7 @@
 # 5. prints the solve's state after each phase (it must say running) and stops the server.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-BIN=${WAVRAD_BIN:-target/release/wavrad}
+BIN=${WAVRAD_BIN:-${CARGO_TARGET_DIR:-target}/release/wavrad}
 DURATION=${DURATION:-10}
 MAX_QUEUED=${MAX_QUEUED:-500}
 LONG_SCENE=${LONG_SCENE:-scenes/kenney_building_small_c/kenney_building_small_c_lit.glb}

@@ -161,6 +161,15 @@ pub struct ServeArgs {
     /// Longest a request may take, upload included (seconds); beyond it 408.
     #[arg(long, env = "WAVRAD_REQUEST_TIMEOUT_SECONDS", default_value_t = crate::service::DEFAULT_REQUEST_TIMEOUT.as_secs())]
     pub request_timeout_seconds: u64,
+    /// Scene uploads received and checked at once (bounds their memory); more wait.
+    #[arg(long, env = "WAVRAD_MAX_CONCURRENT_UPLOADS", default_value_t = crate::service::DEFAULT_MAX_CONCURRENT_UPLOADS)]
+    pub max_concurrent_uploads: usize,
+    /// Most recent succeeded jobs whose solution stays in memory for POST /v1/jobs/{id}/probes.
+    #[arg(long, env = "WAVRAD_PROBE_CACHE_JOBS", default_value_t = crate::service::DEFAULT_PROBE_CACHE_JOBS)]
+    pub probe_cache_jobs: usize,
+    /// Probe points accepted in one probe request; beyond it 400.
+    #[arg(long, env = "WAVRAD_MAX_PROBES", default_value_t = crate::service::DEFAULT_MAX_PROBES)]
+    pub max_probes: usize,
 }
 
 fn init_logging(format: &str) {
@@ -361,6 +370,9 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.api_token = a.api_token;
     config.max_in_flight = a.max_in_flight;
     config.request_timeout = std::time::Duration::from_secs(a.request_timeout_seconds);
+    config.max_concurrent_uploads = a.max_concurrent_uploads;
+    config.probe_cache_jobs = a.probe_cache_jobs;
+    config.max_probes = a.max_probes;
     if let Err(e) = config.validate() {
         return bad_input(e);
     }
@@ -388,5 +400,41 @@ fn serve(a: ServeArgs) -> ExitCode {
             bad_input(format!("cannot listen on {}: {e}", a.addr))
         }
         Err(e) => internal(e),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every option of `wavrad serve` (every limit is one) is documented in the README.
+    #[test]
+    fn every_serve_option_is_in_the_readme() {
+        let readme = include_str!("../README.md");
+        let command = Cli::command();
+        let serve = command
+            .find_subcommand("serve")
+            .expect("a serve subcommand");
+        let mut checked = 0;
+        for arg in serve.get_arguments() {
+            let Some(long) = arg.get_long() else {
+                continue;
+            };
+            if long == "help" {
+                continue;
+            }
+            assert!(
+                readme.contains(&format!("`--{long}")),
+                "--{long} is not documented in README.md"
+            );
+            if let Some(env) = arg.get_env() {
+                let env = env.to_string_lossy();
+                let name = format!("WAVRAD_{}", long.replace('-', "_").to_uppercase());
+                assert_eq!(env, name.as_str(), "--{long} reads WAVRAD_<NAME>");
+            }
+            checked += 1;
+        }
+        assert!(checked >= 12, "{checked} options");
     }
 }

@@ -1,13 +1,15 @@
 //! A bake job: validated parameters (the CONTRACT's solver options, same names on the command line
 //! and over HTTP), and `run_job`, which solves a loaded scene and writes every output file.
 //!
-//! Both the CLI (`wavrad solve`) and the service call [`run_job`], so they produce the same files.
+//! Both the CLI (`wavrad solve`) and the service run [`run_job_keeping_solution`] (the CLI through
+//! [`run_job_with_probes`]), so they produce the same files; the service keeps the solution to
+//! answer probe requests.
 
-use crate::output::probes::{evaluate_probes, ProbePoint};
+use crate::output::probes::{evaluate_probes, ProbePoint, ProbeValue};
 use crate::output::{write_atomic, write_outputs, OutputOptions};
 use crate::pipeline::bake;
 use crate::scene::{Scene, SceneError};
-use crate::solver::{Progress, Quantity, SolverParams, StopReason, DEFAULT_TOLERANCE};
+use crate::solver::{Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -170,6 +172,20 @@ pub fn run_job(
     run_job_with_probes(scene, params, None, out_dir, cancel, observe)
 }
 
+/// A finished solution kept to answer probe requests after the job (`POST /v1/jobs/{id}/probes`).
+#[derive(Debug)]
+pub struct ProbeSource {
+    solution: Solution,
+    diagonal: f64,
+}
+
+impl ProbeSource {
+    /// The requested quantity at each probe, as `probe_values.json` holds it.
+    pub fn evaluate(&self, probes: &[ProbePoint]) -> Vec<ProbeValue> {
+        evaluate_probes(&self.solution, probes, self.diagonal)
+    }
+}
+
 /// [`run_job`], plus `probe_values.json` when probes are given.
 pub fn run_job_with_probes(
     scene: &Scene,
@@ -179,6 +195,20 @@ pub fn run_job_with_probes(
     cancel: &AtomicBool,
     observe: &mut dyn FnMut(&Progress),
 ) -> Result<JobOutcome, JobError> {
+    run_job_keeping_solution(scene, params, probes, out_dir, cancel, observe)
+        .map(|(outcome, _)| outcome)
+}
+
+/// [`run_job_with_probes`], also returning the solution (None for a cancelled job) so that later
+/// probe requests can be answered from it.
+pub fn run_job_keeping_solution(
+    scene: &Scene,
+    params: &JobParams,
+    probes: Option<&[ProbePoint]>,
+    out_dir: &Path,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Result<(JobOutcome, Option<ProbeSource>), JobError> {
     let (prepared, solution) = bake(
         scene,
         params.domain_mode(),
@@ -189,10 +219,13 @@ pub fn run_job_with_probes(
     let stop_reason = solution.stats.stop_reason.unwrap_or(StopReason::Converged);
     if stop_reason == StopReason::Cancelled {
         // A cancelled job's outputs are not wanted: return at once.
-        return Ok(JobOutcome {
-            result: serde_json::Value::Null,
-            stop_reason,
-        });
+        return Ok((
+            JobOutcome {
+                result: serde_json::Value::Null,
+                stop_reason,
+            },
+            None,
+        ));
     }
     std::fs::create_dir_all(out_dir)?;
     let options = OutputOptions {
@@ -205,8 +238,14 @@ pub fn run_job_with_probes(
         let text = serde_json::to_vec_pretty(&values).map_err(std::io::Error::other)?;
         write_atomic(&out_dir.join("probe_values.json"), &text)?;
     }
-    Ok(JobOutcome {
-        result,
-        stop_reason,
-    })
+    Ok((
+        JobOutcome {
+            result,
+            stop_reason,
+        },
+        Some(ProbeSource {
+            solution,
+            diagonal: prepared.diagonal,
+        }),
+    ))
 }

@@ -879,6 +879,9 @@ async fn a_running_job_on_a_large_scene_is_cancelled_within_two_seconds() {
     println!("cancelled after {latency:?}: {}", end["progress"]);
     assert!(latency < Duration::from_secs(2), "took {latency:?}");
     assert_eq!(end["stop_reason"], "cancelled");
+    // The interrupted shot is reported as the last progress (the solver counts it as an
+    // iteration), so the end state cannot tell an interrupted shot from a finished one; what
+    // shows the cancel landed mid-shot is `before` (no shot done yet) and the latency.
 }
 
 /// A finished job deleted goes with its files; `--retain-jobs` deletes the oldest beyond N.
@@ -1188,51 +1191,76 @@ async fn events_stream_progress_then_done() {
     error_of(missing, StatusCode::NOT_FOUND).await;
 }
 
-/// With a token every /v1 route needs it; /healthz and /metrics stay open.
+/// With a token every /v1 route needs it (every operation of the route table, each method, plus
+/// an unknown /v1 path); /healthz and /metrics stay open.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn bearer_token_guards_every_v1_route() {
     let mut config = ServiceConfig::new(data_dir("auth"));
     config.api_token = Some("s3cret-token".into());
     let base = start(config).await;
     let client = client();
-    for path in [
-        "/v1/jobs",
-        "/v1/openapi.json",
-        "/v1/jobs/0000000000000000",
-        "/v1/nope",
-    ] {
-        let response = client.get(format!("{base}{path}")).send().await.unwrap();
-        assert_eq!(response.headers()["www-authenticate"], "Bearer");
-        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
-        assert_eq!(error["code"], "unauthorized", "{path}");
-        assert!(error["message"].as_str().unwrap().contains("Bearer"));
-        let wrong = client
-            .get(format!("{base}{path}"))
-            .bearer_auth("s3cret-tokeN")
-            .send()
-            .await
-            .unwrap();
-        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+    let mut operations: Vec<(reqwest::Method, String)> = Vec::new();
+    for route in wavrad::service::api_routes(1) {
+        let method = reqwest::Method::from_bytes(route.method.as_str().as_bytes()).unwrap();
+        for path in route.documented {
+            let path = path.replace("{id}", "0000000000000000").replace("{n}", "1");
+            operations.push((method.clone(), path));
+        }
     }
-    let post = client
-        .post(format!("{base}/v1/jobs?order=1"))
-        .header("content-type", "model/gltf-binary")
-        .body(small_scene(0.5))
-        .send()
-        .await
-        .unwrap();
-    error_of(post, StatusCode::UNAUTHORIZED).await;
-    let ok = client
+    operations.push((reqwest::Method::GET, "/v1/nope".into()));
+    operations.push((reqwest::Method::PUT, "/v1/jobs".into()));
+    let guarded: Vec<_> = operations
+        .iter()
+        .filter(|(_, p)| p.starts_with("/v1/"))
+        .collect();
+    assert!(guarded.len() >= 12, "{guarded:?}");
+    for (method, path) in &guarded {
+        let url = format!("{base}{path}");
+        let request = || {
+            let r = client.request(method.clone(), &url);
+            if *method == reqwest::Method::POST {
+                r.header("content-type", "model/gltf-binary")
+                    .body(small_scene(0.5))
+            } else {
+                r
+            }
+        };
+        let response = request().send().await.unwrap();
+        assert_eq!(
+            response
+                .headers()
+                .get("www-authenticate")
+                .map(|v| v.as_bytes()),
+            Some(&b"Bearer"[..]),
+            "{method} {path}"
+        );
+        let error = error_of(response, StatusCode::UNAUTHORIZED).await;
+        assert_eq!(error["code"], "unauthorized", "{method} {path}");
+        assert!(error["message"].as_str().unwrap().contains("Bearer"));
+        let wrong = request().bearer_auth("s3cret-tokeN").send().await.unwrap();
+        error_of(wrong, StatusCode::UNAUTHORIZED).await;
+        let right = request().bearer_auth("s3cret-token").send().await.unwrap();
+        assert_ne!(
+            right.status(),
+            StatusCode::UNAUTHORIZED,
+            "{method} {path} with the token"
+        );
+    }
+    for open in ["/healthz", "/metrics", "/"] {
+        let r = client.get(format!("{base}{open}")).send().await.unwrap();
+        assert_eq!(r.status(), StatusCode::OK, "{open}");
+    }
+    // The one POST made with the token was accepted; nothing else created a job.
+    let list: Value = client
         .get(format!("{base}/v1/jobs"))
         .bearer_auth("s3cret-token")
         .send()
         .await
+        .unwrap()
+        .json()
+        .await
         .unwrap();
-    assert_eq!(ok.status(), StatusCode::OK);
-    for open in ["/healthz", "/metrics"] {
-        let r = client.get(format!("{base}{open}")).send().await.unwrap();
-        assert_eq!(r.status(), StatusCode::OK, "{open}");
-    }
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
 }
 
 /// `/metrics` is Prometheus text, every series `wavrad_*`, counting what happened.
@@ -1270,6 +1298,28 @@ async fn metrics_count_jobs_and_solves() {
             .unwrap_or(line);
         assert!(name.starts_with("wavrad_"), "{line}");
     }
+    // Every series the README lists is there, with its type.
+    for name in [
+        "wavrad_jobs",
+        "wavrad_queue_depth",
+        "wavrad_queue_capacity",
+        "wavrad_running_elements",
+        "wavrad_running_shots",
+        "wavrad_solves_total",
+        "wavrad_solve_seconds_total",
+        "wavrad_shots_total",
+        "wavrad_elements_total",
+        "wavrad_rays_total",
+    ] {
+        assert!(
+            text.lines()
+                .any(|l| l.starts_with(&format!("# TYPE {name} "))),
+            "{name} in\n{text}"
+        );
+    }
+    for state in ["queued", "running", "succeeded", "failed", "cancelled"] {
+        value(&format!("wavrad_jobs{{state=\"{state}\"}}"));
+    }
     assert_eq!(value("wavrad_jobs{state=\"succeeded\"}"), 1.0);
     assert_eq!(value("wavrad_jobs{state=\"queued\"}"), 0.0);
     assert_eq!(value("wavrad_queue_depth"), 0.0);
@@ -1296,6 +1346,88 @@ async fn malformed_files_get_4xx_and_the_server_stays_up() {
         .collect();
     files.sort();
     assert!(files.len() >= 25, "the corpus is there: {}", files.len());
+    // Each hostile shape the service must refuse, by category (issue 6), in both containers
+    // where it applies.
+    let categories: [(&str, &[&str]); 8] = [
+        (
+            "truncated",
+            &[
+                "truncated.glb",
+                "truncated_header.glb",
+                "truncated.gltf",
+                "empty.glb",
+            ],
+        ),
+        ("wrong magic", &["wrong_magic.glb", "wrong_version.glb"]),
+        (
+            "huge counts",
+            &[
+                "huge_accessor_count.gltf",
+                "huge_accessor_count.glb",
+                "huge_buffer_byte_length.gltf",
+                "huge_chunk_count.glb",
+                "length_lies.glb",
+                "json_chunk_length_lies.glb",
+            ],
+        ),
+        (
+            "cyclic node graphs",
+            &[
+                "cyclic_nodes.gltf",
+                "cyclic_nodes.glb",
+                "self_child_node.gltf",
+                "shared_children_nodes.gltf",
+            ],
+        ),
+        (
+            "NaN",
+            &[
+                "nan_positions.gltf",
+                "nan_positions.glb",
+                "nan_emission.gltf",
+                "inf_positions.gltf",
+                "inf_emission.gltf",
+                "inf_emission_strength.gltf",
+                "inf_light_intensity.gltf",
+                "huge_translation.gltf",
+            ],
+        ),
+        (
+            "missing buffers",
+            &[
+                "missing_buffer.gltf",
+                "no_buffers.gltf",
+                "buffer_without_uri.gltf",
+                "missing_bin_chunk.glb",
+                "bin_chunk_shorter_than_buffer.glb",
+            ],
+        ),
+        (
+            "data URIs lying about their size",
+            &[
+                "data_uri_shorter_than_declared.gltf",
+                "data_uri_longer_than_declared.gltf",
+            ],
+        ),
+        (
+            "fuzz crashes",
+            &[
+                "fuzz_accessor_count_zero.glb",
+                "fuzz_position_accessor_out_of_range.gltf",
+                "fuzz_position_accessor_vec2.gltf",
+                "float_indices.gltf",
+                "position_accessor_vec4_u8.gltf",
+            ],
+        ),
+    ];
+    for (category, names) in categories {
+        for name in names {
+            assert!(
+                files.iter().any(|f| f.ends_with(name)),
+                "{category}: {name} is in the corpus"
+            );
+        }
+    }
     for path in files {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let content_type = match path.extension().and_then(|e| e.to_str()) {
@@ -1383,4 +1515,144 @@ async fn busy_timeout_and_internal_errors_are_json() {
     assert!(error["message"].as_str().unwrap().contains("server log"));
     let health = client.get(format!("{base}/healthz")).send().await.unwrap();
     assert_eq!(health.status(), StatusCode::OK);
+}
+
+/// `POST /v1/jobs/{id}/probes` evaluates a succeeded job's solution at the given points (the
+/// emitting wall shows at least its own emission, a point in mid-air has no value); bad bodies
+/// are 400, unfinished jobs 409, and a job whose solution left memory (`--probe-cache-jobs`) is a
+/// 409 that says what to do.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn probes_are_evaluated_on_a_succeeded_job() {
+    let mut config = ServiceConfig::new(data_dir("probes"));
+    config.probe_cache_jobs = 1;
+    config.max_probes = 3;
+    let base = start(config).await;
+    let client = client();
+    let probe = |id: &str, body: Value| {
+        client
+            .post(format!("{base}/v1/jobs/{id}/probes"))
+            .header("content-type", "application/json")
+            .body(body.to_string())
+            .send()
+    };
+    let first = submit_ok(&client, &base, "order=2", small_scene(0.5)).await;
+    let first = first["id"].as_str().unwrap().to_string();
+    wait_for(&client, &base, &first, "succeeded", Duration::from_secs(60)).await;
+
+    let points = json!([
+        {"p": [0.0, 0.5, 0.5], "n": [1.0, 0.0, 0.0]},
+        {"p": [1.0, 0.25, 0.75], "n": [-1.0, 0.0, 0.0]},
+        {"p": [0.5, 0.5, 0.5], "n": [0.0, 0.0, 1.0]}
+    ]);
+    let response = probe(&first, points.clone()).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let values: Value = response.json().await.unwrap();
+    println!("probe values: {values}");
+    let values = values.as_array().unwrap();
+    assert_eq!(values.len(), 3);
+    let l = |i: usize| -> Vec<f64> {
+        values[i]["L"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    // The lamp (L_e = 1) shows its emission plus what it reflects; the opposite wall only light.
+    assert!(
+        l(0).iter().all(|v| *v >= 1.0 && v.is_finite()),
+        "{values:?}"
+    );
+    assert!(l(1).iter().all(|v| *v > 0.0 && *v < 1.0), "{values:?}");
+    assert!(values[0]["face"].is_u64() && values[1]["face"].is_u64());
+    assert_ne!(values[0]["face"], values[1]["face"]);
+    assert!(values[2]["L"].is_null() && values[2]["error"].is_string());
+
+    for bad in [
+        json!({"p": [0, 0, 0]}),
+        json!([{"p": [0, 0, 0], "n": [0, 0, 0]}]),
+    ] {
+        let response = probe(&first, bad).await.unwrap();
+        assert_eq!(
+            error_of(response, StatusCode::BAD_REQUEST).await["code"],
+            "bad_probes"
+        );
+    }
+    let four = json!([points[0], points[1], points[2], points[0]]);
+    let response = probe(&first, four).await.unwrap();
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    assert_eq!(error["code"], "too_many_probes");
+    assert!(error["message"].as_str().unwrap().contains("--max-probes"));
+    let response = probe("0000000000000000", points.clone()).await.unwrap();
+    error_of(response, StatusCode::NOT_FOUND).await;
+
+    // A running job has no solution to probe yet.
+    let busy = submit_ok(
+        &client,
+        &base,
+        "order=1&target_unshot=1e-9&max_seconds=20",
+        never_converging_scene(),
+    )
+    .await;
+    let busy = busy["id"].as_str().unwrap().to_string();
+    let response = probe(&busy, points.clone()).await.unwrap();
+    assert_eq!(
+        error_of(response, StatusCode::CONFLICT).await["code"],
+        "job_not_succeeded"
+    );
+    let response = client
+        .delete(format!("{base}/v1/jobs/{busy}"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    wait_for(&client, &base, &busy, "cancelled", Duration::from_secs(10)).await;
+
+    // With --probe-cache-jobs 1, the next succeeded job's solution replaces the first's.
+    let second = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    let second = second["id"].as_str().unwrap().to_string();
+    wait_for(
+        &client,
+        &base,
+        &second,
+        "succeeded",
+        Duration::from_secs(60),
+    )
+    .await;
+    let response = probe(&second, points.clone()).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let response = probe(&first, points).await.unwrap();
+    let error = error_of(response, StatusCode::CONFLICT).await;
+    assert_eq!(error["code"], "solution_not_in_memory");
+    assert!(error["message"]
+        .as_str()
+        .unwrap()
+        .contains("--probe-cache-jobs"));
+}
+
+/// `GET /` is the dashboard: a self-contained HTML page that reads `GET /v1/jobs`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_dashboard_page_is_served() {
+    let base = start(ServiceConfig::new(data_dir("dashboard"))).await;
+    let response = client().get(format!("{base}/")).send().await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    assert!(response.headers()["content-type"]
+        .to_str()
+        .unwrap()
+        .starts_with("text/html"));
+    assert!(response.headers()["content-security-policy"]
+        .to_str()
+        .unwrap()
+        .contains("connect-src 'self'"));
+    let page = response.text().await.unwrap();
+    assert!(page.starts_with("<!doctype html>"));
+    assert!(page.contains("fetch(\"/v1/jobs\""), "it polls the job list");
+    assert!(
+        !page.contains("innerHTML"),
+        "server data is inserted as text only"
+    );
+    assert!(
+        !page.contains("http://") && !page.contains("https://"),
+        "no external resources"
+    );
 }

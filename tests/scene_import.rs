@@ -332,6 +332,15 @@ fn fuzz_crashes_are_refused_with_a_reason() {
             "accessor index out of bounds",
         ),
         ("fuzz_accessor_count_zero.glb", "count must be at least 1"),
+        (
+            "fuzz_position_accessor_vec2.gltf",
+            "POSITION: must be a VEC3 accessor of FLOAT",
+        ),
+        ("float_indices.gltf", "indices: must be a SCALAR accessor"),
+        (
+            "position_accessor_vec4_u8.gltf",
+            "POSITION: must be a VEC3 accessor of FLOAT",
+        ),
     ];
     for (file, expected) in cases {
         let path = format!("{}/tests/data/malformed/{file}", env!("CARGO_MANIFEST_DIR"));

@@ -322,3 +322,46 @@ async fn json_logs_carry_request_and_job_spans() {
     assert_eq!(solved["span"]["name"], "job", "{solved}");
     assert_eq!(solved["span"]["id"], id.as_str());
 }
+
+/// `--retain-jobs N` also applies at start: a restart with a smaller N deletes the oldest finished
+/// jobs, files and all, and keeps the newest.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn retain_jobs_applies_at_start() {
+    let data = data_dir("retain");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let mut ids = Vec::new();
+    for _ in 0..3 {
+        let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+        wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+            j["state"] == "succeeded"
+        })
+        .await;
+        ids.push(id);
+    }
+    service.kill();
+
+    let service = Service::start(&data, &["--retain-jobs", "1"]);
+    let base = service.base.clone();
+    for old in &ids[..2] {
+        let r = client
+            .get(format!("{base}/v1/jobs/{old}"))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), StatusCode::NOT_FOUND, "{old} deleted");
+        assert!(
+            !data.join("jobs").join(old).exists(),
+            "{old}'s files deleted"
+        );
+    }
+    let kept = job(&client, &base, &ids[2]).await;
+    assert_eq!(kept["state"], "succeeded");
+    assert!(data
+        .join("jobs")
+        .join(&ids[2])
+        .join("result.json")
+        .is_file());
+    drop(service);
+}

@@ -134,6 +134,43 @@ fn check_accessor_indices(root: &gltf::json::Root) -> Result<(), SceneError> {
     // gltf's readers compute `count - 1` and assume a stride of at least one element (a panic in
     // checked builds, found by fuzzing): the spec's own rules, checked here first.
     use gltf::json::validation::Checked;
+    // The readers also take the accessor's type on trust: POSITION is read as VEC3 floats (a
+    // VEC2 accessor fails a size assertion, found by fuzzing) and indices as unsigned integers
+    // (a float index accessor reaches an `unreachable!`). The spec's types for both, checked here.
+    use gltf::json::accessor::{ComponentType, Type};
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let place = format!("meshes[{m}].primitives[{p}]");
+            let accessor =
+                |i: gltf::json::Index<gltf::json::Accessor>| root.accessors.get(i.value());
+            let position = primitive
+                .attributes
+                .get(&Checked::Valid(gltf::json::mesh::Semantic::Positions))
+                .and_then(|&i| accessor(i));
+            if let Some(a) = position {
+                let float_vec3 = matches!(a.type_, Checked::Valid(Type::Vec3))
+                    && matches!(&a.component_type, Checked::Valid(c) if c.0 == ComponentType::F32);
+                if !float_vec3 {
+                    bad.push(format!(
+                        "{place}.attributes.POSITION: must be a VEC3 accessor of FLOAT (5126)"
+                    ));
+                }
+            }
+            if let Some(a) = primitive.indices.and_then(accessor) {
+                let unsigned_scalar = matches!(a.type_, Checked::Valid(Type::Scalar))
+                    && matches!(&a.component_type, Checked::Valid(c) if matches!(
+                        c.0,
+                        ComponentType::U8 | ComponentType::U16 | ComponentType::U32
+                    ));
+                if !unsigned_scalar {
+                    bad.push(format!(
+                        "{place}.indices: must be a SCALAR accessor of UNSIGNED_BYTE, \
+                         UNSIGNED_SHORT or UNSIGNED_INT"
+                    ));
+                }
+            }
+        }
+    }
     for (a, accessor) in root.accessors.iter().enumerate() {
         if accessor.count.0 == 0 || accessor.sparse.as_ref().is_some_and(|s| s.count.0 == 0) {
             bad.push(format!("accessors[{a}]: count must be at least 1"));

@@ -1,5 +1,5 @@
-//! Jobs in memory: their state (one `tokio::sync::watch` channel per job, read by polling and, later,
-//! by server-sent events), the documents they are shown as, and the board that holds every job and
+//! Jobs in memory: their state (one `tokio::sync::watch` channel per job, read by polling and by
+//! server-sent events), the documents they are shown as, and the board that holds every job and
 //! the bounded queue of those waiting for a runner.
 
 use super::error::ErrorBody;
@@ -54,7 +54,9 @@ pub struct ProgressView {
     pub links: u64,
     /// Seconds of solving so far.
     pub seconds: f64,
-    /// Estimated seconds to convergence; not estimated yet (always null).
+    /// Estimated seconds until `target_unshot` is reached (capped by the time budget), from a
+    /// log-linear fit of the recent unshot ratio ([`estimate_eta`]); null until it can be fitted
+    /// and once the job has ended.
     pub eta_seconds: Option<f64>,
 }
 

@@ -15,7 +15,7 @@
 //!   `queued`, end event streams, then return.
 //! - [`metrics`]: `/metrics` in Prometheus text.
 //!
-//! Not yet: `POST /v1/jobs/{id}/probes` and the dashboard page `GET /`.
+//! `GET /` is a small dashboard page (no external resources) that polls `GET /v1/jobs`.
 
 pub mod error;
 pub mod extract;
@@ -32,6 +32,7 @@ pub use jobs::{Job, JobBoard, JobState, JobView, ProgressView};
 pub use recovery::Recovered;
 pub use store::{FileStore, JobId};
 
+use crate::job::ProbeSource;
 use axum::extract::{DefaultBodyLimit, Request, State};
 use axum::handler::Handler;
 use axum::http::{Method, StatusCode};
@@ -66,6 +67,13 @@ pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 /// beyond which a submission is refused with 422.
 pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
 
+/// Succeeded jobs whose solution stays in memory to answer `POST /v1/jobs/{id}/probes` (the most
+/// recent ones; a solution holds every element's coefficients, megabytes to gigabytes).
+pub const DEFAULT_PROBE_CACHE_JOBS: usize = 4;
+
+/// Probe points in one `POST /v1/jobs/{id}/probes` (each is located against every element root).
+pub const DEFAULT_MAX_PROBES: usize = 100_000;
+
 /// Seconds a client is told to wait (`Retry-After`) when the queue or the server is full.
 pub const RETRY_AFTER_SECONDS: u64 = 10;
 /// Longest a request may take, upload included (a 256 MiB upload at 10 Mbit/s takes ~215 s).
@@ -74,8 +82,9 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(300);
 pub const SHUTDOWN_SOLVE_WAIT: Duration = Duration::from_secs(30);
 /// Requests handled at once; beyond it 503, so a flood cannot exhaust memory or file handles.
 pub const DEFAULT_MAX_IN_FLIGHT: usize = 1024;
-/// Scene uploads buffered and checked at once: bounds their memory to this many bodies.
-pub const MAX_CONCURRENT_UPLOADS: usize = 4;
+/// Scene uploads buffered and checked at once: bounds their memory to this many bodies (each at
+/// most `max_body_bytes`); further uploads wait for a slot.
+pub const DEFAULT_MAX_CONCURRENT_UPLOADS: usize = 4;
 
 /// Settings of the service (CONTRACT `wavrad serve` options).
 #[derive(Clone, PartialEq, Eq)]
@@ -104,6 +113,13 @@ pub struct ServiceConfig {
     pub max_in_flight: usize,
     /// Longest a request may take, upload included; beyond it 408.
     pub request_timeout: Duration,
+    /// Scene uploads received and checked at once; more wait for a slot (within the request
+    /// timeout).
+    pub max_concurrent_uploads: usize,
+    /// Most recent succeeded jobs whose solution is kept in memory for probe requests (0: none).
+    pub probe_cache_jobs: usize,
+    /// Probe points accepted in one probe request; more is refused with 400.
+    pub max_probes: usize,
 }
 
 impl std::fmt::Debug for ServiceConfig {
@@ -120,6 +136,9 @@ impl std::fmt::Debug for ServiceConfig {
             .field("api_token", &self.api_token.as_ref().map(|_| "<set>"))
             .field("max_in_flight", &self.max_in_flight)
             .field("request_timeout", &self.request_timeout)
+            .field("max_concurrent_uploads", &self.max_concurrent_uploads)
+            .field("probe_cache_jobs", &self.probe_cache_jobs)
+            .field("max_probes", &self.max_probes)
             .finish()
     }
 }
@@ -139,6 +158,9 @@ impl ServiceConfig {
             api_token: None,
             max_in_flight: DEFAULT_MAX_IN_FLIGHT,
             request_timeout: DEFAULT_REQUEST_TIMEOUT,
+            max_concurrent_uploads: DEFAULT_MAX_CONCURRENT_UPLOADS,
+            probe_cache_jobs: DEFAULT_PROBE_CACHE_JOBS,
+            max_probes: DEFAULT_MAX_PROBES,
         }
     }
 
@@ -161,6 +183,12 @@ impl ServiceConfig {
         }
         if self.max_in_flight == 0 {
             return Err("--max-in-flight must be at least 1".into());
+        }
+        if self.max_probes == 0 {
+            return Err("--max-probes must be at least 1".into());
+        }
+        if self.max_concurrent_uploads == 0 {
+            return Err("--max-concurrent-uploads must be at least 1".into());
         }
         if self.request_timeout.is_zero() {
             return Err("--request-timeout-seconds must be at least 1".into());
@@ -208,6 +236,8 @@ struct Shared {
     shutdown: tokio::sync::watch::Sender<bool>,
     /// Solves in progress on the pool (a shutdown waits for them to be persisted).
     active_solves: std::sync::atomic::AtomicUsize,
+    /// Solutions of the most recent succeeded jobs, newest last (`probe_cache_jobs` at most).
+    probe_sources: std::sync::Mutex<std::collections::VecDeque<(String, Arc<ProbeSource>)>>,
 }
 
 impl AppState {
@@ -228,17 +258,19 @@ impl AppState {
         let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
         let max_in_flight = config.max_in_flight;
+        let max_uploads = config.max_concurrent_uploads;
         let state = AppState {
             inner: Arc::new(Shared {
                 jobs,
                 config,
                 store,
-                upload_permits: Semaphore::new(MAX_CONCURRENT_UPLOADS),
+                upload_permits: Semaphore::new(max_uploads),
                 in_flight: Arc::new(Semaphore::new(max_in_flight)),
                 keyed_submissions: tokio::sync::Mutex::new(()),
                 metrics: metrics::Metrics::default(),
                 shutdown: tokio::sync::watch::Sender::new(false),
                 active_solves: std::sync::atomic::AtomicUsize::new(0),
+                probe_sources: std::sync::Mutex::new(std::collections::VecDeque::new()),
             }),
         };
         runner::enforce_retention(&state);
@@ -314,6 +346,47 @@ impl AppState {
         }
     }
 
+    /// Keeps a succeeded job's solution for probe requests, dropping the oldest beyond
+    /// `probe_cache_jobs`.
+    pub(crate) fn keep_probe_source(&self, id: &str, source: ProbeSource) {
+        let limit = self.config().probe_cache_jobs;
+        let mut sources = self
+            .inner
+            .probe_sources
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        sources.retain(|(k, _)| k != id);
+        if limit == 0 {
+            return;
+        }
+        sources.push_back((id.to_string(), Arc::new(source)));
+        while sources.len() > limit {
+            sources.pop_front();
+        }
+    }
+
+    /// The kept solution of job `id`, if it is still in memory.
+    pub(crate) fn probe_source(&self, id: &str) -> Option<Arc<ProbeSource>> {
+        let sources = self
+            .inner
+            .probe_sources
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        sources
+            .iter()
+            .find(|(k, _)| k == id)
+            .map(|(_, s)| s.clone())
+    }
+
+    /// Drops the kept solution of a deleted job.
+    pub(crate) fn forget_probe_source(&self, id: &str) {
+        self.inner
+            .probe_sources
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .retain(|(k, _)| k != id);
+    }
+
     pub(crate) fn keyed_submissions(&self) -> &tokio::sync::Mutex<()> {
         &self.inner.keyed_submissions
     }
@@ -357,6 +430,7 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
         }
     }
     vec![
+        route("/", Method::GET, &["/"], get(routes::dashboard)),
         route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
         route("/metrics", Method::GET, &["/metrics"], get(routes::metrics)),
         route(
@@ -400,6 +474,12 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
             Method::GET,
             &["/v1/jobs/{id}/result"],
             get(routes::get_result),
+        ),
+        route(
+            "/v1/jobs/{id}/probes",
+            Method::POST,
+            &["/v1/jobs/{id}/probes"],
+            post(routes::post_probes.layer(DefaultBodyLimit::max(max_body))),
         ),
         route(
             "/v1/jobs/{id}/convergence",

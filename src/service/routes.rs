@@ -7,6 +7,7 @@ use super::store::{CONVERGENCE_FILE, RESULT_FILE};
 use super::{AppState, RETRY_AFTER_SECONDS};
 use crate::job::{estimated_memory_bytes, JobParams};
 use crate::output::page_file_name;
+use crate::output::probes::parse_probes;
 use crate::pipeline::check_solvable;
 use crate::scene::{load_scene, ExternalFiles};
 use axum::body::{Body, Bytes};
@@ -129,6 +130,29 @@ pub async fn job_events(
     Ok(Sse::new(stream)
         .keep_alive(KeepAlive::new().interval(SSE_KEEP_ALIVE))
         .into_response())
+}
+
+/// The dashboard page, embedded at build time.
+const DASHBOARD_HTML: &str = include_str!("assets/dashboard.html");
+
+/// `GET /`: the dashboard, a page that lists the jobs (polling `GET /v1/jobs`, with the API token
+/// when one is typed in), their progress, links to their outputs and a cancel button.
+pub async fn dashboard() -> Response {
+    let mut response = Response::new(Body::from(DASHBOARD_HTML));
+    let headers = response.headers_mut();
+    headers.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/html; charset=utf-8"),
+    );
+    // Only its own inline script and style, and requests to this server.
+    headers.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static(
+            "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; \
+             connect-src 'self'; img-src 'self'",
+        ),
+    );
+    response
 }
 
 /// `GET /healthz`.
@@ -507,6 +531,7 @@ pub async fn delete_job(
         .map_err(|e| ApiError::internal("deleting the job failed", e))?
         .map_err(|e| ApiError::internal("deleting the job's files failed", e))?;
     state.jobs().forget(job.id.as_str());
+    state.forget_probe_source(job.id.as_str());
     tracing::info!(job = %job.id, "job deleted");
     Ok(StatusCode::NO_CONTENT.into_response())
 }
@@ -531,6 +556,73 @@ pub async fn get_result(
     }
     let bytes = read_job_file(&state, &job, RESULT_FILE).await?;
     Ok(file_response(bytes, "application/json"))
+}
+
+/// `POST /v1/jobs/{id}/probes`: the probe points file in the body; the answer is
+/// `probe_values.json` (CONTRACT), evaluated on the job's solution. The solutions of the most
+/// recent succeeded jobs (`--probe-cache-jobs`) stay in memory for this; an older job's, or one
+/// from before a restart, is gone (409 `solution_not_in_memory`).
+pub async fn post_probes(
+    State(state): State<AppState>,
+    ApiPath(id): ApiPath<String>,
+    request: Request,
+) -> Result<Response, ApiError> {
+    let job = find(&state, &id)?;
+    let job_state = job.state();
+    if job_state != JobState::Succeeded {
+        return Err(ApiError::conflict(
+            "job_not_succeeded",
+            format!(
+                "job {} is {}; probes are evaluated once it has succeeded",
+                job.id,
+                job_state.as_str()
+            ),
+        ));
+    }
+    let max_body = state.config().max_body_bytes;
+    // Bodies are read and evaluated under the same bound as scene uploads.
+    let _permit = state
+        .upload_permits()
+        .acquire()
+        .await
+        .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
+    let body = read_body(request, max_body).await?;
+    let probes = parse_probes(&body).map_err(|e| {
+        ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "bad_probes",
+            format!("{e} (body: a probe points file, [{{\"p\":[x,y,z],\"n\":[nx,ny,nz]}}, ...])"),
+        )
+    })?;
+    let max_probes = state.config().max_probes;
+    if probes.len() > max_probes {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "too_many_probes",
+            format!(
+                "{} probe points, more than this server evaluates in one request ({max_probes}, \
+                 --max-probes); split them over several requests",
+                probes.len()
+            ),
+        ));
+    }
+    let Some(source) = state.probe_source(job.id.as_str()) else {
+        return Err(ApiError::conflict(
+            "solution_not_in_memory",
+            format!(
+                "job {}'s solution is no longer in memory (the server keeps the {} most recent \
+                 succeeded jobs' solutions, --probe-cache-jobs, and none from before a restart); \
+                 submit the scene again with the same parameters (same input, same result) and \
+                 ask its new job",
+                job.id,
+                state.config().probe_cache_jobs
+            ),
+        ));
+    };
+    let values = tokio::task::spawn_blocking(move || source.evaluate(&probes))
+        .await
+        .map_err(|e| ApiError::internal("evaluating the probes failed", e))?;
+    Ok(Json(values).into_response())
 }
 
 /// One row of `GET /v1/jobs/{id}/convergence`.

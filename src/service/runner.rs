@@ -8,7 +8,7 @@
 use super::error::{panic_message, ErrorBody};
 use super::jobs::{Job, JobState, JobStatus, ProgressView};
 use super::AppState;
-use crate::job::{run_job, JobError, JobOutcome};
+use crate::job::{run_job_keeping_solution, JobError, JobOutcome, ProbeSource};
 use crate::scene::{load_scene, ExternalFiles, SceneError};
 use crate::solver::StopReason;
 use std::io;
@@ -129,8 +129,15 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
     let _enter = span.enter();
     tracing::info!("solving");
     let max_triangles = state.config().max_triangles;
-    let finished = guarded(|| solve(state, job, max_triangles));
+    let mut solution = None;
+    let finished = guarded(|| solve(state, job, max_triangles, &mut solution));
     record_metrics(state, job, &finished);
+    if let (Finished::Solved(outcome), Some(solution)) = (&finished, solution) {
+        if outcome.stop_reason != StopReason::Cancelled {
+            // Kept before the job shows `succeeded`, so a probe request right after finds it.
+            state.keep_probe_source(job.id.as_str(), solution);
+        }
+    }
     if let Finished::Solved(outcome) = &finished {
         if outcome.stop_reason == StopReason::Cancelled && !job.cancel_requested() {
             // Stopped for a shutdown: back to the queue, to start over at the next start.
@@ -198,6 +205,7 @@ pub(crate) fn enforce_retention(state: &AppState) {
         match state.store().delete_job(&job.id) {
             Ok(()) => {
                 state.jobs().forget(job.id.as_str());
+                state.forget_probe_source(job.id.as_str());
                 tracing::info!(job = %job.id, "deleted by --retain-jobs");
             }
             Err(e) => tracing::error!(job = %job.id, error = %e, "could not delete an old job"),
@@ -230,8 +238,13 @@ fn guarded(solve: impl FnOnce() -> Result<JobOutcome, JobError>) -> Finished {
 }
 
 /// Loads the job's scene from its directory (the upload is not kept in memory while queued) and
-/// solves it, writing the outputs next to it.
-fn solve(state: &AppState, job: &Job, max_triangles: usize) -> Result<JobOutcome, JobError> {
+/// solves it, writing the outputs next to it; the solution goes to `solution` for probe requests.
+fn solve(
+    state: &AppState,
+    job: &Job,
+    max_triangles: usize,
+    solution: &mut Option<ProbeSource>,
+) -> Result<JobOutcome, JobError> {
     let store = state.store();
     let path = store.scene_path(&job.id)?;
     let bytes = std::fs::read(&path)?;
@@ -245,9 +258,16 @@ fn solve(state: &AppState, job: &Job, max_triangles: usize) -> Result<JobOutcome
     drop(external);
     drop(bytes);
     let dir = store.job_dir(&job.id);
-    run_job(&scene, &job.params, &dir, job.cancel_flag(), &mut |p| {
-        job.set_progress(ProgressView::from(p))
-    })
+    let (outcome, kept) = run_job_keeping_solution(
+        &scene,
+        &job.params,
+        None,
+        &dir,
+        job.cancel_flag(),
+        &mut |p| job.set_progress(ProgressView::from(p)),
+    )?;
+    *solution = kept;
+    Ok(outcome)
 }
 
 fn job_error_body(e: &JobError) -> ErrorBody {

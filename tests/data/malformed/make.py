@@ -80,3 +80,49 @@ write("index_out_of_range.gltf", gltf(data=bin48()[:36] + struct.pack("<3I", 0, 
 write("material_out_of_range.gltf", gltf(material=42))
 write("no_emitter.gltf", {**gltf(), "materials": [{}]})
 write("nan_emission.gltf", {**gltf(), "materials": [{"emissiveFactor": [1.0, float("nan"), 1.0]}]})
+
+# The same hostile contents in the binary container, and a few more shapes of each category.
+write("truncated.gltf", json.dumps(gltf()).encode()[:200])
+write("huge_accessor_count.glb", glb(gltf(uri=None, count=4_000_000_000, idx_count=3_000_000_000), bin48()))
+def glb_with_extra_chunks(root, binary, extra):
+    # Header, JSON chunk, `extra` empty unknown chunks, then the BIN chunk; lengths all true.
+    j = json.dumps(root).encode()
+    j += b" " * (-len(j) % 4)
+    body = (struct.pack("<I4s", len(j), b"JSON") + j + struct.pack("<I4s", 0, b"XTRA") * extra
+            + struct.pack("<I4s", len(binary), b"BIN\0") + binary)
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+write("huge_chunk_count.glb", glb_with_extra_chunks(gltf(uri=None), bin48(), 10_000))
+write("nan_positions.glb", glb(gltf(uri=None), bin48(nan=True)))
+write("cyclic_nodes.glb", glb(gltf(uri=None, nodes=[{"mesh": 0, "children": [1]}, {"children": [0]}]), bin48()))
+# Every node of level k is a child of both nodes of level k - 1: 2^40 paths to the last mesh if
+# shared children were followed (glTF allows one parent per node).
+shared = []
+for k in range(40):
+    children = [2 * k + 2, 2 * k + 3] if k < 39 else []
+    shared += [{"mesh": 0, "children": children}, {"children": children}]
+write("shared_children_nodes.gltf", {**gltf(), "nodes": shared[:-2] + [{"mesh": 0}, {"mesh": 0}]})
+
+def glb_json_only(root):
+    j = json.dumps(root).encode()
+    j += b" " * (-len(j) % 4)
+    body = struct.pack("<I4s", len(j), b"JSON") + j
+    return struct.pack("<4sII", b"glTF", 2, 12 + len(body)) + body
+
+write("missing_bin_chunk.glb", glb_json_only(gltf(uri=None)))
+write("bin_chunk_shorter_than_buffer.glb", glb(gltf(uri=None, byte_length=4096), bin48()))
+# JSON has no NaN or infinity, but a number beyond f32 becomes infinite when read as f32.
+write("inf_emission.gltf", {**gltf(), "materials": [{"emissiveFactor": [1e39, 1.0, 1.0]}]})
+write("inf_emission_strength.gltf", {**gltf(), "extensionsUsed": ["KHR_materials_emissive_strength"],
+    "materials": [{"emissiveFactor": [1.0, 1.0, 1.0],
+                   "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 1e39}}}]})
+write("inf_light_intensity.gltf", {**gltf(), "materials": [{}],
+    "extensionsUsed": ["KHR_lights_punctual"],
+    "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 1e39}]}},
+    "nodes": [{"mesh": 0, "children": [1]}, {"extensions": {"KHR_lights_punctual": {"light": 0}}, "translation": [0.2, 0.2, 1.0]}]})
+write("huge_translation.gltf", {**gltf(), "nodes": [{"mesh": 0, "translation": [1e39, 0.0, 0.0]}]})
+# Accessor types the readers take on trust: indices must be unsigned integers, POSITION VEC3 floats.
+write("float_indices.gltf", {**gltf(), "accessors": [gltf()["accessors"][0],
+    {"bufferView": 1, "componentType": 5126, "count": 3, "type": "SCALAR"}]})
+write("position_accessor_vec4_u8.gltf", {**gltf(), "accessors": [
+    {"bufferView": 0, "componentType": 5121, "count": 3, "type": "VEC4"}, gltf()["accessors"][1]]})
