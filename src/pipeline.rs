@@ -15,7 +15,8 @@ pub struct Prepared {
     /// One per face side, with the range of its roots in `roots`.
     pub surfaces: Vec<Surface>,
     pub roots: Vec<ElementRoot>,
-    /// Per face id: the extended domain of an extended face (not used by the solver yet).
+    /// Per face id: the extended domain of an extended face (its roots carry it as their `FaceMask`
+    /// in extended mode).
     pub extended: Vec<Option<ExtendedDomain>>,
     pub visibility: Visibility,
     pub diagonal: f64,

@@ -237,6 +237,22 @@ fn faces_with_holes_emit_and_receive_exactly() {
                 1,
                 "the emitter is one face with a hole"
             );
+            // Extended mode solves it as one root on its domain, with the face as its mask;
+            // tessellated mode as triangles.
+            let emitter_roots: Vec<_> = sol.roots.iter().filter(|r| r.material == emit).collect();
+            match mode {
+                DomainMode::Extended => {
+                    assert_eq!(emitter_roots.len(), 1);
+                    assert!(emitter_roots[0].mask.is_some());
+                    assert!((emitter_roots[0].face_area_m2 - 0.75).abs() < 1e-9);
+                    assert!((emitter_roots[0].area_m2 - 1.0).abs() < 1e-9);
+                }
+                DomainMode::Tessellated => {
+                    assert!(
+                        emitter_roots.len() > 1 && emitter_roots.iter().all(|r| r.mask.is_none())
+                    );
+                }
+            }
             check(
                 &format!("{mode:?} M{order} holed emitter"),
                 mean_radiance(&sol, recv),
