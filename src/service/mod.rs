@@ -68,7 +68,8 @@ pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
 
 /// Succeeded jobs whose solution stays in memory to answer `POST /v1/jobs/{id}/probes` (the most
-/// recent ones; a solution holds every element's coefficients, megabytes to gigabytes).
+/// recent ones, solved or probed; a solution holds every element's coefficients, megabytes to
+/// gigabytes). Any other job's is loaded from its `solution.bin` first.
 pub const DEFAULT_PROBE_CACHE_JOBS: usize = 4;
 
 /// Probe points in one `POST /v1/jobs/{id}/probes` (each is located against every element root).
