@@ -164,7 +164,8 @@ pub struct ServeArgs {
     /// Scene uploads received and checked at once (bounds their memory); more wait.
     #[arg(long, env = "WAVRAD_MAX_CONCURRENT_UPLOADS", default_value_t = crate::service::DEFAULT_MAX_CONCURRENT_UPLOADS)]
     pub max_concurrent_uploads: usize,
-    /// Most recent succeeded jobs whose solution stays in memory for POST /v1/jobs/{id}/probes.
+    /// Most recent succeeded (or probed) jobs whose solution stays in memory for
+    /// POST /v1/jobs/{id}/probes; others are loaded from their solution.bin first.
     #[arg(long, env = "WAVRAD_PROBE_CACHE_JOBS", default_value_t = crate::service::DEFAULT_PROBE_CACHE_JOBS)]
     pub probe_cache_jobs: usize,
     /// Probe points accepted in one probe request; beyond it 400.

@@ -6,6 +6,7 @@
 //! answer probe requests.
 
 use crate::output::probes::{evaluate_probes, ProbePoint, ProbeValue};
+use crate::output::solution_file::{self, SolutionFileError};
 use crate::output::{write_atomic, write_outputs, OutputOptions};
 use crate::pipeline::bake;
 use crate::scene::{Scene, SceneError};
@@ -172,17 +173,35 @@ pub fn run_job(
     run_job_with_probes(scene, params, None, out_dir, cancel, observe)
 }
 
-/// A finished solution kept to answer probe requests after the job (`POST /v1/jobs/{id}/probes`).
+/// A finished solution kept to answer probe requests after the job (`POST /v1/jobs/{id}/probes`),
+/// in memory and, through [`ProbeSource::save`] and [`ProbeSource::load`], in `solution.bin`.
 #[derive(Debug)]
 pub struct ProbeSource {
     solution: Solution,
     diagonal: f64,
+    mode: crate::domain::DomainMode,
 }
 
 impl ProbeSource {
     /// The requested quantity at each probe, as `probe_values.json` holds it.
     pub fn evaluate(&self, probes: &[ProbePoint]) -> Vec<ProbeValue> {
         evaluate_probes(&self.solution, probes, self.diagonal)
+    }
+
+    /// Writes the solution to `path` atomically ([`solution_file`]).
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        solution_file::save(path, &self.solution, self.mode)
+    }
+
+    /// The solution saved at `path` by [`ProbeSource::save`] for `scene`, the job's scene (its
+    /// element roots are rebuilt from it and checked against the file).
+    pub fn load(path: &Path, scene: &Scene) -> Result<ProbeSource, SolutionFileError> {
+        let loaded = solution_file::load(path, scene)?;
+        Ok(ProbeSource {
+            solution: loaded.solution,
+            diagonal: loaded.diagonal,
+            mode: loaded.mode,
+        })
     }
 }
 
@@ -246,6 +265,7 @@ pub fn run_job_keeping_solution(
         Some(ProbeSource {
             solution,
             diagonal: prepared.diagonal,
+            mode: params.domain_mode(),
         }),
     ))
 }

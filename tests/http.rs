@@ -1519,11 +1519,13 @@ async fn busy_timeout_and_internal_errors_are_json() {
 
 /// `POST /v1/jobs/{id}/probes` evaluates a succeeded job's solution at the given points (the
 /// emitting wall shows at least its own emission, a point in mid-air has no value); bad bodies
-/// are 400, unfinished jobs 409, and a job whose solution left memory (`--probe-cache-jobs`) is a
-/// 409 that says what to do.
+/// are 400, unfinished jobs 409. A job whose solution left memory (`--probe-cache-jobs`) is
+/// answered from its `solution.bin` with the same values; without a usable one (a job from an
+/// older version, a damaged file) it is a 409 that says what to do.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn probes_are_evaluated_on_a_succeeded_job() {
-    let mut config = ServiceConfig::new(data_dir("probes"));
+    let dir = data_dir("probes");
+    let mut config = ServiceConfig::new(dir.clone());
     config.probe_cache_jobs = 1;
     config.max_probes = 3;
     let base = start(config).await;
@@ -1621,13 +1623,43 @@ async fn probes_are_evaluated_on_a_succeeded_job() {
     .await;
     let response = probe(&second, points.clone()).await.unwrap();
     assert_eq!(response.status(), StatusCode::OK);
-    let response = probe(&first, points).await.unwrap();
+    // The first job's solution is no longer in memory: it is loaded from its solution.bin.
+    let solution_file = dir.join("jobs").join(&first).join("solution.bin");
+    assert!(solution_file.is_file());
+    let response = probe(&first, points.clone()).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let reloaded: Value = response.json().await.unwrap();
+    assert_eq!(
+        reloaded.as_array().unwrap(),
+        values,
+        "same values from disk"
+    );
+
+    // A job finished by an older version (no solution.bin), or a damaged file: 409, what to do.
+    let response = probe(&second, points.clone()).await.unwrap(); // evicts the first again
+    assert_eq!(response.status(), StatusCode::OK);
+    let saved = std::fs::read(&solution_file).unwrap();
+    std::fs::remove_file(&solution_file).unwrap();
+    let response = probe(&first, points.clone()).await.unwrap();
     let error = error_of(response, StatusCode::CONFLICT).await;
-    assert_eq!(error["code"], "solution_not_in_memory");
-    assert!(error["message"]
-        .as_str()
-        .unwrap()
-        .contains("--probe-cache-jobs"));
+    assert_eq!(error["code"], "solution_unavailable");
+    let message = error["message"].as_str().unwrap();
+    assert!(message.contains("older version"), "{message}");
+    assert!(message.contains("submit the scene again"), "{message}");
+    for damaged in [
+        saved[..saved.len() / 2].to_vec(),
+        b"not a solution".to_vec(),
+    ] {
+        std::fs::write(&solution_file, damaged).unwrap();
+        let response = probe(&first, points.clone()).await.unwrap();
+        let error = error_of(response, StatusCode::CONFLICT).await;
+        assert_eq!(error["code"], "solution_unavailable");
+        let message = error["message"].as_str().unwrap();
+        assert!(message.contains("cannot be used"), "{message}");
+    }
+    std::fs::write(&solution_file, &saved).unwrap();
+    let response = probe(&first, points).await.unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
 }
 
 /// `GET /` is the dashboard: a self-contained HTML page that reads `GET /v1/jobs`.

@@ -365,3 +365,64 @@ async fn retain_jobs_applies_at_start() {
         .is_file());
     drop(service);
 }
+
+/// Probes are part of a succeeded job's results: after a restart (SIGKILL), `POST
+/// /v1/jobs/{id}/probes` answers from the job's saved `solution.bin` with the values it gave
+/// before, for a job solved in either domain mode.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn probes_answer_the_same_after_a_restart() {
+    let data = data_dir("probes");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let points = serde_json::json!([
+        {"p": [0.5, 1.0, 0.5], "n": [0.0, -1.0, 0.0]},
+        {"p": [0.3, 0.0, 0.7], "n": [0.0, 1.0, 0.0]},
+        {"p": [0.0, 0.2, 0.9], "n": [1.0, 0.0, 0.0]},
+        {"p": [0.5, 0.5, 0.5], "n": [0.0, 0.0, 1.0]}
+    ])
+    .to_string();
+    let probe = |base: String, id: String| {
+        let client = client.clone();
+        let body = points.clone();
+        async move {
+            let r = client
+                .post(format!("{base}/v1/jobs/{id}/probes"))
+                .header("content-type", "application/json")
+                .body(body)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(r.status(), StatusCode::OK, "probes of {id}");
+            r.json::<Value>().await.unwrap()
+        }
+    };
+    let mut before = Vec::new();
+    for query in [
+        "order=2",
+        "order=3&domain=tessellated&quantity=irradiance&indirect_only=true",
+    ] {
+        let id = submit(&client, &base, query, box_scene(0.5, 2)).await;
+        wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
+            j["state"] == "succeeded"
+        })
+        .await;
+        assert!(data.join("jobs").join(&id).join("solution.bin").is_file());
+        let values = probe(base.clone(), id.clone()).await;
+        assert!(values[0]["L"][0].as_f64().unwrap() > 0.0, "{values}");
+        assert!(values[3]["L"].is_null());
+        before.push((id, values));
+    }
+    service.kill();
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    for (id, values) in &before {
+        let after = probe(base.clone(), id.clone()).await;
+        assert_eq!(
+            &after, values,
+            "job {id}: the same values after the restart"
+        );
+    }
+    drop(service);
+}

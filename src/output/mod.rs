@@ -8,6 +8,7 @@
 
 pub mod atlas;
 pub mod probes;
+pub mod solution_file;
 
 use crate::domain::{clamp_to_shape, plane_coordinates, Frame, Side, StBox, Surface};
 use crate::faces::FaceSet;

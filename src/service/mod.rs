@@ -68,7 +68,8 @@ pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 pub const DEFAULT_MAX_MEMORY_BYTES: u64 = 16 << 30;
 
 /// Succeeded jobs whose solution stays in memory to answer `POST /v1/jobs/{id}/probes` (the most
-/// recent ones; a solution holds every element's coefficients, megabytes to gigabytes).
+/// recent ones, solved or probed; a solution holds every element's coefficients, megabytes to
+/// gigabytes). Any other job's is loaded from its `solution.bin` first.
 pub const DEFAULT_PROBE_CACHE_JOBS: usize = 4;
 
 /// Probe points in one `POST /v1/jobs/{id}/probes` (each is located against every element root).
@@ -238,6 +239,9 @@ struct Shared {
     active_solves: std::sync::atomic::AtomicUsize,
     /// Solutions of the most recent succeeded jobs, newest last (`probe_cache_jobs` at most).
     probe_sources: std::sync::Mutex<std::collections::VecDeque<(String, Arc<ProbeSource>)>>,
+    /// Held while a saved solution is loaded for a probe request (one load at a time bounds
+    /// the memory and CPU that probes on jobs out of memory take).
+    probe_loads: tokio::sync::Mutex<()>,
 }
 
 impl AppState {
@@ -271,6 +275,7 @@ impl AppState {
                 shutdown: tokio::sync::watch::Sender::new(false),
                 active_solves: std::sync::atomic::AtomicUsize::new(0),
                 probe_sources: std::sync::Mutex::new(std::collections::VecDeque::new()),
+                probe_loads: tokio::sync::Mutex::new(()),
             }),
         };
         runner::enforce_retention(&state);
@@ -348,7 +353,7 @@ impl AppState {
 
     /// Keeps a succeeded job's solution for probe requests, dropping the oldest beyond
     /// `probe_cache_jobs`.
-    pub(crate) fn keep_probe_source(&self, id: &str, source: ProbeSource) {
+    pub(crate) fn keep_probe_source(&self, id: &str, source: Arc<ProbeSource>) {
         let limit = self.config().probe_cache_jobs;
         let mut sources = self
             .inner
@@ -359,7 +364,7 @@ impl AppState {
         if limit == 0 {
             return;
         }
-        sources.push_back((id.to_string(), Arc::new(source)));
+        sources.push_back((id.to_string(), source));
         while sources.len() > limit {
             sources.pop_front();
         }
@@ -385,6 +390,10 @@ impl AppState {
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
             .retain(|(k, _)| k != id);
+    }
+
+    pub(crate) fn probe_loads(&self) -> &tokio::sync::Mutex<()> {
+        &self.inner.probe_loads
     }
 
     pub(crate) fn keyed_submissions(&self) -> &tokio::sync::Mutex<()> {

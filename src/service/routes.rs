@@ -1,10 +1,12 @@
 //! Request handlers of the v1 API and `/healthz`.
 
-use super::error::{clip, ApiError};
+use super::error::{clip, panic_message, ApiError};
 use super::extract::{ApiPath, ApiQuery};
 use super::jobs::{Job, JobState, JobStatus, JobView};
+use super::runner::load_probe_source;
 use super::store::{CONVERGENCE_FILE, RESULT_FILE};
 use super::{AppState, RETRY_AFTER_SECONDS};
+use crate::job::ProbeSource;
 use crate::job::{estimated_memory_bytes, JobParams};
 use crate::output::page_file_name;
 use crate::output::probes::parse_probes;
@@ -19,6 +21,7 @@ use axum::response::{IntoResponse, Response};
 use axum::Json;
 use serde::Serialize;
 use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
 use std::time::SystemTime;
 
@@ -559,9 +562,9 @@ pub async fn get_result(
 }
 
 /// `POST /v1/jobs/{id}/probes`: the probe points file in the body; the answer is
-/// `probe_values.json` (CONTRACT), evaluated on the job's solution. The solutions of the most
-/// recent succeeded jobs (`--probe-cache-jobs`) stay in memory for this; an older job's, or one
-/// from before a restart, is gone (409 `solution_not_in_memory`).
+/// `probe_values.json` (CONTRACT), evaluated on the job's solution: in memory for the most recent
+/// succeeded jobs (`--probe-cache-jobs`), else loaded from the job's `solution.bin`. A job without
+/// a usable one (finished by an older version, or damaged) is 409 `solution_unavailable`.
 pub async fn post_probes(
     State(state): State<AppState>,
     ApiPath(id): ApiPath<String>,
@@ -606,23 +609,56 @@ pub async fn post_probes(
             ),
         ));
     }
-    let Some(source) = state.probe_source(job.id.as_str()) else {
-        return Err(ApiError::conflict(
-            "solution_not_in_memory",
-            format!(
-                "job {}'s solution is no longer in memory (the server keeps the {} most recent \
-                 succeeded jobs' solutions, --probe-cache-jobs, and none from before a restart); \
-                 submit the scene again with the same parameters (same input, same result) and \
-                 ask its new job",
-                job.id,
-                state.config().probe_cache_jobs
-            ),
-        ));
-    };
+    let source = probe_source_of(&state, &job).await?;
     let values = tokio::task::spawn_blocking(move || source.evaluate(&probes))
         .await
         .map_err(|e| ApiError::internal("evaluating the probes failed", e))?;
     Ok(Json(values).into_response())
+}
+
+/// The solution of succeeded job `job` for probes: from memory, else loaded from its saved
+/// solution on the blocking pool (one load at a time) and kept in memory.
+async fn probe_source_of(state: &AppState, job: &Arc<Job>) -> Result<Arc<ProbeSource>, ApiError> {
+    if let Some(source) = state.probe_source(job.id.as_str()) {
+        return Ok(source);
+    }
+    let _loading = state.probe_loads().lock().await;
+    // Another request may have loaded it while this one waited.
+    if let Some(source) = state.probe_source(job.id.as_str()) {
+        return Ok(source);
+    }
+    let store = state.store().clone();
+    let id = job.id.clone();
+    let max_triangles = state.config().max_triangles;
+    let loaded = tokio::task::spawn_blocking(move || {
+        catch_unwind(AssertUnwindSafe(|| {
+            load_probe_source(&store, &id, max_triangles)
+        }))
+    })
+    .await
+    .map_err(|e| ApiError::internal("loading the saved solution failed", e))?;
+    match loaded {
+        Ok(Ok(source)) => {
+            let source = Arc::new(source);
+            // Not for a job deleted meanwhile.
+            if state.jobs().get(job.id.as_str()).is_some() {
+                state.keep_probe_source(job.id.as_str(), source.clone());
+            }
+            tracing::info!(job = %job.id, "saved solution loaded for probes");
+            Ok(source)
+        }
+        Ok(Err(reason)) => Err(ApiError::conflict(
+            "solution_unavailable",
+            format!(
+                "{reason}; submit the scene again with the same parameters (same input, same \
+                 result) and ask its new job"
+            ),
+        )),
+        Err(payload) => Err(ApiError::internal(
+            "loading the saved solution panicked",
+            panic_message(payload.as_ref()),
+        )),
+    }
 }
 
 /// One row of `GET /v1/jobs/{id}/convergence`.

@@ -7,9 +7,10 @@
 
 use super::error::{panic_message, ErrorBody};
 use super::jobs::{Job, JobState, JobStatus, ProgressView};
+use super::store::{FileStore, JobId, SOLUTION_FILE};
 use super::AppState;
 use crate::job::{run_job_keeping_solution, JobError, JobOutcome, ProbeSource};
-use crate::scene::{load_scene, ExternalFiles, SceneError};
+use crate::scene::{load_scene, ExternalFiles, Scene, SceneError};
 use crate::solver::StopReason;
 use std::io;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -135,7 +136,7 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
     if let (Finished::Solved(outcome), Some(solution)) = (&finished, solution) {
         if outcome.stop_reason != StopReason::Cancelled {
             // Kept before the job shows `succeeded`, so a probe request right after finds it.
-            state.keep_probe_source(job.id.as_str(), solution);
+            state.keep_probe_source(job.id.as_str(), Arc::new(solution));
         }
     }
     if let Finished::Solved(outcome) = &finished {
@@ -246,17 +247,7 @@ fn solve(
     solution: &mut Option<ProbeSource>,
 ) -> Result<JobOutcome, JobError> {
     let store = state.store();
-    let path = store.scene_path(&job.id)?;
-    let bytes = std::fs::read(&path)?;
-    let parts = store.read_parts(&job.id)?;
-    let external = if parts.is_empty() {
-        ExternalFiles::Refuse
-    } else {
-        ExternalFiles::Named(parts)
-    };
-    let scene = load_scene(&bytes, &external, max_triangles)?;
-    drop(external);
-    drop(bytes);
+    let scene = load_job_scene(store, &job.id, max_triangles)?;
     let dir = store.job_dir(&job.id);
     let (outcome, kept) = run_job_keeping_solution(
         &scene,
@@ -266,8 +257,49 @@ fn solve(
         job.cancel_flag(),
         &mut |p| job.set_progress(ProgressView::from(p)),
     )?;
+    if let Some(kept) = &kept {
+        // Before state.json says `succeeded`: every succeeded job has its solution on disk.
+        kept.save(&store.file_path(&job.id, SOLUTION_FILE))?;
+    }
     *solution = kept;
     Ok(outcome)
+}
+
+/// The stored scene of job `id` (with the files of a multipart upload).
+fn load_job_scene(store: &FileStore, id: &JobId, max_triangles: usize) -> Result<Scene, JobError> {
+    let path = store.scene_path(id)?;
+    let bytes = std::fs::read(&path)?;
+    let parts = store.read_parts(id)?;
+    let external = if parts.is_empty() {
+        ExternalFiles::Refuse
+    } else {
+        ExternalFiles::Named(parts)
+    };
+    Ok(load_scene(&bytes, &external, max_triangles)?)
+}
+
+/// The solution of succeeded job `id` from its `solution.bin` (blocking: loads the scene and
+/// rebuilds its element roots). The error says why it cannot be had and what to do.
+pub(crate) fn load_probe_source(
+    store: &FileStore,
+    id: &JobId,
+    max_triangles: usize,
+) -> Result<ProbeSource, String> {
+    let path = store.file_path(id, SOLUTION_FILE);
+    if !path.is_file() {
+        return Err(format!(
+            "job {id} has no saved solution ({SOLUTION_FILE}): it finished under an older version \
+             of the server, which did not save solutions"
+        ));
+    }
+    let scene = load_job_scene(store, id, max_triangles).map_err(|e| {
+        tracing::warn!(job = %id, error = %e, "the stored scene of a succeeded job does not load");
+        format!("job {id}'s stored scene cannot be loaded again: {e}")
+    })?;
+    ProbeSource::load(&path, &scene).map_err(|e| {
+        tracing::warn!(job = %id, error = %e, "a saved solution cannot be used");
+        format!("job {id}'s saved solution cannot be used: {e}")
+    })
 }
 
 fn job_error_body(e: &JobError) -> ErrorBody {

@@ -6,7 +6,9 @@
 //! - `params.json`: the job parameters, defaults filled in;
 //! - `state.json`: the job's [`JobRecord`](super::jobs::JobRecord), rewritten at every change of state;
 //! - the outputs of [`run_job`](crate::job::run_job): `result.json`, `lightmap*.exr`,
-//!   `convergence.csv`.
+//!   `convergence.csv`;
+//! - `solution.bin`: a succeeded job's solution ([`crate::output::solution_file`]), written before
+//!   `state.json` says `succeeded`, read back to answer probe requests after a restart.
 //!
 //! Deleting a job renames its directory into `data_dir/trash/` (atomic: the job is there or it is
 //! not) and removes it from there; whatever a crash leaves in the trash is removed at the next start.
@@ -37,6 +39,8 @@ pub const PARTS_FILE: &str = "parts.json";
 pub const RESULT_FILE: &str = "result.json";
 /// The per-shot convergence table.
 pub const CONVERGENCE_FILE: &str = "convergence.csv";
+/// A succeeded job's solution, for probe requests.
+pub const SOLUTION_FILE: &str = crate::output::solution_file::SOLUTION_FILE;
 
 /// Attempts at finding an unused job id before giving up (collisions need two jobs in the same
 /// millisecond with the same 20 random bits).

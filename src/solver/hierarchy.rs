@@ -214,6 +214,41 @@ impl Hierarchy {
     }
 }
 
+/// Checks that `nodes` form a tree as [`Hierarchy`] builds them (node 0 the root at depth 0; a
+/// parent's four children contiguous, after it, one level deeper, each node the child of exactly
+/// one parent) with finite, non-degenerate maps, so that [`Hierarchy::locate`] terminates and
+/// never indexes out of bounds. For nodes read from outside (a saved solution).
+pub fn check_tree(nodes: &[Node]) -> Result<(), String> {
+    if nodes.first().is_none_or(|n| n.depth != 0) {
+        return Err("no root node at depth 0".into());
+    }
+    let mut claimed = vec![false; nodes.len()];
+    for (i, node) in nodes.iter().enumerate() {
+        let m = &node.map;
+        let det = m.e1.perp_dot(m.e2);
+        if ![m.o, m.e1, m.e2].iter().all(|v| v.is_finite()) || !det.is_finite() || det == 0.0 {
+            return Err(format!("node {i} has a degenerate or non-finite map"));
+        }
+        if node.is_leaf() {
+            continue;
+        }
+        let first = node.first_child as usize;
+        if first <= i || first.checked_add(4).is_none_or(|end| end > nodes.len()) {
+            return Err(format!("node {i}'s children are out of order or bounds"));
+        }
+        for c in first..first + 4 {
+            if claimed[c] || Some(nodes[c].depth) != node.depth.checked_add(1) {
+                return Err(format!("node {c} is not a proper child of node {i}"));
+            }
+            claimed[c] = true;
+        }
+    }
+    if let Some(orphan) = (1..nodes.len()).find(|&i| !claimed[i]) {
+        return Err(format!("node {orphan} has no parent"));
+    }
+    Ok(())
+}
+
 /// Which child of a reference shape contains local point `st` (ties go to the lower index).
 pub fn child_index(shape: Shape, st: DVec2) -> usize {
     match shape {

@@ -924,6 +924,58 @@ pub fn solve(
 }
 
 impl Solution {
+    /// A solution rebuilt from saved parts: the roots (rebuilt by the caller exactly as for the
+    /// solve), per root its hierarchy with `nodes`, `h` and `hd` (`u` and `dh` may be empty: they
+    /// are zeroed; `covers` are recomputed), and the parameters. Stats and convergence are empty.
+    /// Refuses parts that do not fit together (counts, coefficient lengths, non-tree nodes).
+    pub fn from_saved(
+        roots: Vec<ElementRoot>,
+        mut hierarchies: Vec<Hierarchy>,
+        params: SolverParams,
+    ) -> Result<Solution, String> {
+        if !(1..=3).contains(&params.order) {
+            return Err(format!("order {} is not 1, 2 or 3", params.order));
+        }
+        if roots.len() != hierarchies.len() {
+            return Err(format!(
+                "{} hierarchies for {} roots",
+                hierarchies.len(),
+                roots.len()
+            ));
+        }
+        let bases = Bases::new(params.order);
+        let rules = Rules::new(params.order);
+        for (i, (h, r)) in hierarchies.iter_mut().zip(&roots).enumerate() {
+            let basis = bases.of(r.shape);
+            let coeffs = h.nodes.len() * basis.len();
+            if h.len != basis.len() || h.h.len() != coeffs || h.hd.len() != coeffs {
+                return Err(format!("root {i}: coefficient arrays do not fit its nodes"));
+            }
+            hierarchy::check_tree(&h.nodes).map_err(|e| format!("root {i}: {e}"))?;
+            // Covers need the elements of an extended root to be boxes of its (s, t) square.
+            let boxes =
+                |m: &ChildMap| m.e1.y == 0.0 && m.e2.x == 0.0 && m.e1.x > 0.0 && m.e2.y > 0.0;
+            if r.mask.is_some() && !h.nodes.iter().all(|n| boxes(&n.map)) {
+                return Err(format!(
+                    "root {i}: an element of an extended root is not a box"
+                ));
+            }
+            h.u = vec![[0.0; 3]; coeffs];
+            h.dh = vec![[0.0; 3]; coeffs];
+            h.touched = false;
+            h.covers.clear();
+            cover::extend(h, r, &rules.cover, basis);
+        }
+        Ok(Solution {
+            roots,
+            hierarchies,
+            params,
+            stats: SolveStats::default(),
+            convergence: Vec::new(),
+            bases,
+        })
+    }
+
     pub fn basis(&self, root: usize) -> &Basis {
         self.bases.of(self.roots[root].shape)
     }
