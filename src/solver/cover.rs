@@ -155,8 +155,22 @@ pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: 
 /// `h.len` each), per channel: `|root| * coefficient 0` for a native root; over the leaves of an
 /// extended root, each weighted by its face moments.
 pub fn face_integral(h: &Hierarchy, array: &[Rgb], root: &ElementRoot) -> Rgb {
+    face_integral_by(h, root, false, |k| array[k])
+}
+
+/// As [`face_integral`], for the function whose coefficient `k` (node `k / h.len`, function
+/// `k % h.len`) is `coeff(k)`. With `clamp_leaves`, each leaf's integral is clamped at 0 per
+/// channel: the received light is never negative, but a polynomial fitted over a whole element can
+/// dip below 0 on the part of it the face covers (output means use this; energy accounting not).
+pub fn face_integral_by(
+    h: &Hierarchy,
+    root: &ElementRoot,
+    clamp_leaves: bool,
+    coeff: impl Fn(usize) -> Rgb,
+) -> Rgb {
+    let clamp = |x: f64| if clamp_leaves { x.max(0.0) } else { x };
     if root.mask.is_none() {
-        return array[0].map(|c| c * root.area_m2);
+        return coeff(0).map(|c| clamp(c * root.area_m2));
     }
     debug_assert_eq!(h.covers.len(), h.nodes.len());
     let n = h.len;
@@ -167,14 +181,19 @@ pub fn face_integral(h: &Hierarchy, array: &[Rgb], root: &ElementRoot) -> Rgb {
             continue;
         }
         let area = root.area_m2 * node.map.e1.perp_dot(node.map.e2).abs();
+        let mut leaf = [0.0; 3];
         for a in 0..n {
             let m = cover.moments[a];
             if m == 0.0 {
                 continue;
             }
+            let c = coeff(i * n + a);
             for ch in 0..3 {
-                sum[ch] += area * m * array[i * n + a][ch];
+                leaf[ch] += area * m * c[ch];
             }
+        }
+        for ch in 0..3 {
+            sum[ch] += clamp(leaf[ch]);
         }
     }
     sum

@@ -1017,33 +1017,40 @@ impl Solution {
         }
     }
 
-    /// Mean over the root's face of the function whose coefficients `array` holds (for a native
-    /// root, coefficient 0; for an extended one, the face-weighted integral over its leaves).
-    fn face_mean(&self, root: usize, array: &[Rgb]) -> Rgb {
+    /// Mean over the root's face of the irradiance received (all light, or indirect only):
+    /// coefficient 0 for a native root; for an extended one the integral over
+    /// its face, each leaf's part clamped at 0.
+    fn face_mean_irradiance(&self, root: usize, indirect: bool) -> Rgb {
         let r = &self.roots[root];
+        let h = &self.hierarchies[root];
+        let coeff = |k: usize| -> Rgb {
+            if indirect {
+                [0, 1, 2].map(|c| h.h[k][c] - h.hd[k][c])
+            } else {
+                h.h[k]
+            }
+        };
         if r.mask.is_none() || r.face_area_m2 <= 0.0 {
-            return array[0];
+            return coeff(0);
         }
-        face_integral(&self.hierarchies[root], array, r).map(|x| x / r.face_area_m2)
+        cover::face_integral_by(h, r, true, coeff).map(|x| x / r.face_area_m2)
     }
 
-    /// Mean of the requested quantity over the root's face (an integral: no clamp).
+    /// Mean of the requested quantity over the root's face, clamped at 0: light is never negative,
+    /// but a source whose higher-order radiosity dips below 0 near a shadow edge sends a little
+    /// negative light, and a face in full shadow can end a hair below 0 (1e-6 of the scene's mean
+    /// on the Red Eclipse level).
     pub fn mean_value(&self, root: usize) -> Rgb {
-        let h = &self.hierarchies[root];
-        let total = self.face_mean(root, &h.h);
-        let mean_h = if self.params.indirect_only {
-            let direct = self.face_mean(root, &h.hd);
-            [0, 1, 2].map(|c| total[c] - direct[c])
-        } else {
-            total
-        };
+        let mean_h = self.face_mean_irradiance(root, self.params.indirect_only);
+        // (`if`, not `max`: a NaN must stay visible.)
         self.quantity_from_irradiance(root, mean_h)
+            .map(|v| if v < 0.0 { 0.0 } else { v })
     }
 
     /// Mean radiosity B over the root's face (emission included), W/m^2.
     pub fn mean_radiosity(&self, root: usize) -> Rgb {
         let r = &self.roots[root];
-        let h = self.face_mean(root, &self.hierarchies[root].h);
+        let h = self.face_mean_irradiance(root, false);
         [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
     }
 }
