@@ -294,6 +294,17 @@ fn cli_solve_writes_the_contract_outputs() {
     assert!(faces.iter().all(|f| f["kind"] == "parallelogram"));
     assert_eq!(result["scene"]["faces"], 6);
     assert!(result["stats"]["peak_memory_bytes"].as_u64().unwrap() > 0);
+    // Counters of every fallback; a box has no extended face.
+    for counter in [
+        "refinement_capped",
+        "touching_fallbacks",
+        "extended_faces",
+        "extended_faces_on_domain",
+        "extended_faces_tessellated",
+    ] {
+        assert!(result["stats"][counter].is_u64(), "{counter}");
+    }
+    assert_eq!(result["stats"]["extended_faces"], 0);
     let csv = std::fs::read_to_string(out_dir.join("convergence.csv")).unwrap();
     assert!(csv.starts_with("seconds,unshot_ratio,elements,links\n") && csv.lines().count() > 2);
     // The EXR reads back with the atlas size result.json states, and coverage alpha in [0, 1].

@@ -435,11 +435,29 @@ pub fn write_outputs(
         .collect();
     let stats = &solution.stats;
     let mut warnings = scene.warnings.clone();
-    if params.domain == crate::job::DomainMode::Extended {
-        warnings.push(
-            "extended domains are not built yet: faces that are neither triangles nor parallelograms are tessellated in this version"
-                .into(),
-        );
+    // Extended faces solved on their domain, and those that fell back to their triangles.
+    let extended_faces = prepared
+        .faces
+        .faces
+        .iter()
+        .filter(|f| f.kind == crate::faces::FaceKind::Extended)
+        .count();
+    let mut masked_faces: Vec<u32> = solution
+        .roots
+        .iter()
+        .filter(|r| r.mask.is_some())
+        .map(|r| r.face.0)
+        .collect();
+    masked_faces.dedup();
+    let extended_tessellated = if params.domain == crate::job::DomainMode::Extended {
+        extended_faces - masked_faces.len().min(extended_faces)
+    } else {
+        0
+    };
+    if extended_tessellated > 0 {
+        warnings.push(format!(
+            "{extended_tessellated} extended face(s) were solved as triangles: their domain could not be built"
+        ));
     }
     if stats.refinement_capped > 0 {
         warnings.push(format!(
@@ -462,6 +480,9 @@ pub fn write_outputs(
             "emitted_power": stats.emitted_power, "peak_memory_bytes": peak_memory_bytes(),
             "stop_reason": stats.stop_reason.map(|s| s.as_str()).unwrap_or("converged"),
             "rays": stats.rays, "refinement_capped": stats.refinement_capped,
+            "touching_fallbacks": stats.touching_fallbacks,
+            "extended_faces": extended_faces, "extended_faces_on_domain": masked_faces.len(),
+            "extended_faces_tessellated": extended_tessellated,
             "texels_per_meter": atlas.texels_per_meter,
         },
         "faces": faces,

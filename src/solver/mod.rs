@@ -119,6 +119,9 @@ pub struct SolveStats {
     pub stop_reason: Option<StopReason>,
     /// Transfers accepted above tolerance because neither side could be split further.
     pub refinement_capped: u64,
+    /// Receiver points where no source quadrature point lay in front of the receiver (touching
+    /// elements): the exact form factor times the visible fraction stood in for the quadrature.
+    pub touching_fallbacks: u64,
 }
 
 /// The solved scene: roots, their hierarchies, and what it took.
@@ -309,6 +312,7 @@ struct ShotContext<'a> {
     quantity: Quantity,
     links: &'a AtomicU64,
     capped: &'a AtomicU64,
+    touching: &'a AtomicU64,
     cancel: &'a AtomicBool,
 }
 
@@ -475,6 +479,7 @@ impl ShotContext<'_> {
                 // Every source point is on or behind the receiver's plane (touching elements):
                 // the exact form factor with the visible fraction of the source, constant part only.
                 g = [0.0; MAX_FUNCTIONS];
+                self.touching.fetch_add(1, Ordering::Relaxed);
                 if alpha_weight > 0.0 {
                     g[0] = f_exact * visible_weight / alpha_weight;
                 }
@@ -704,6 +709,7 @@ pub fn solve(
     }
     let links = AtomicU64::new(0);
     let capped = AtomicU64::new(0);
+    let touching = AtomicU64::new(0);
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
@@ -860,6 +866,7 @@ pub fn solve(
                 quantity: params.quantity,
                 links: &links,
                 capped: &capped,
+                touching: &touching,
                 cancel,
             };
             hierarchies
@@ -912,6 +919,7 @@ pub fn solve(
         emitted_power: emitted,
         stop_reason: Some(stop),
         refinement_capped: capped.load(Ordering::Relaxed),
+        touching_fallbacks: touching.load(Ordering::Relaxed),
     };
     Solution {
         roots,
