@@ -539,24 +539,31 @@ pub async fn delete_job(
     Ok(StatusCode::NO_CONTENT.into_response())
 }
 
+/// 409 `job_not_succeeded` unless the job has succeeded; `what` says what waits for that.
+fn require_succeeded(job: &Job, what: &str) -> Result<(), ApiError> {
+    let job_state = job.state();
+    if job_state == JobState::Succeeded {
+        return Ok(());
+    }
+    Err(ApiError::conflict(
+        "job_not_succeeded",
+        format!("job {} is {}; {what}", job.id, job_state.as_str()),
+    ))
+}
+
 /// `GET /v1/jobs/{id}/result`: result.json of a succeeded job.
 pub async fn get_result(
     State(state): State<AppState>,
     ApiPath(id): ApiPath<String>,
 ) -> Result<Response, ApiError> {
     let job = find(&state, &id)?;
-    let job_state = job.state();
-    if job_state != JobState::Succeeded {
-        return Err(ApiError::conflict(
-            "job_not_succeeded",
-            format!(
-                "job {} is {}; its result exists once it has succeeded (poll GET /v1/jobs/{})",
-                job.id,
-                job_state.as_str(),
-                job.id
-            ),
-        ));
-    }
+    require_succeeded(
+        &job,
+        &format!(
+            "its result exists once it has succeeded (poll GET /v1/jobs/{})",
+            job.id
+        ),
+    )?;
     let bytes = read_job_file(&state, &job, RESULT_FILE).await?;
     Ok(file_response(bytes, "application/json"))
 }
@@ -571,17 +578,7 @@ pub async fn post_probes(
     request: Request,
 ) -> Result<Response, ApiError> {
     let job = find(&state, &id)?;
-    let job_state = job.state();
-    if job_state != JobState::Succeeded {
-        return Err(ApiError::conflict(
-            "job_not_succeeded",
-            format!(
-                "job {} is {}; probes are evaluated once it has succeeded",
-                job.id,
-                job_state.as_str()
-            ),
-        ));
-    }
+    require_succeeded(&job, "probes are evaluated once it has succeeded")?;
     let max_body = state.config().max_body_bytes;
     // Bodies are read and evaluated under the same bound as scene uploads.
     let _permit = state
