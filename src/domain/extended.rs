@@ -258,30 +258,69 @@ impl ExtendedDomain {
         let (ri, i, lambda) = at;
         let ring = &self.rings[ri];
         let n = ring.len();
-        let inward = |e: usize| -> DVec2 {
+        // Unit inward normal (world) of edge `e`.
+        let inward = |e: usize| -> DVec3 {
             let (a, b) = (ring[e % n], ring[(e + 1) % n]);
             let d = self.frame.u * (b - a).x + self.frame.v * (b - a).y;
-            let left = self.normal.cross(d).normalize_or_zero() * inset;
+            self.normal.cross(d).normalize_or_zero()
+        };
+        let to_st = |world: DVec3| {
             plane_coordinates(
                 &Frame {
                     origin: DVec3::ZERO,
                     ..self.frame
                 },
-                left,
+                world,
             )
         };
-        let mut offset = inward(i);
-        if lambda <= 0.0 {
-            offset += inward(i + n - 1);
-        } else if lambda >= 1.0 {
-            offset += inward(i + 1);
+        let n1 = inward(i);
+        // At a vertex (start of edge `i` when `start`): along the sum of the two edges' normals,
+        // scaled so the point is `inset` from both edges' lines (an acute corner needs more than
+        // the sum), at most 20 insets.
+        let corner = |start: bool| -> DVec3 {
+            let n2 = if start {
+                inward(i + n - 1)
+            } else {
+                inward(i + 1)
+            };
+            let sum = n1 + n2;
+            let along = sum.dot(n1);
+            if along > 0.05 {
+                sum * (inset / along)
+            } else {
+                sum.normalize_or_zero() * inset
+            }
+        };
+        let inside = |p: DVec2| p.is_finite() && self.contains(p);
+        // Within 20 insets of a vertex, step in from the vertex: the edge's own normal would come
+        // too close to the other edge of an acute corner (or leave the face across it).
+        let (a, b) = (ring[i], ring[(i + 1) % n]);
+        let world_len = (self.frame.u * (b - a).x + self.frame.v * (b - a).y).length();
+        let near_start = lambda * world_len < 20.0 * inset;
+        let near_end = (1.0 - lambda) * world_len < 20.0 * inset;
+        if near_start || near_end {
+            let start = near_start && (!near_end || lambda < 0.5);
+            let vertex = if start { a } else { b };
+            let from_vertex = vertex + to_st(corner(start));
+            if inside(from_vertex) {
+                return from_vertex;
+            }
         }
-        let moved = best + offset;
-        if moved.is_finite() && self.contains(moved) {
-            moved
-        } else {
-            best
+        let first = n1 * inset;
+        let moved = best + to_st(first);
+        if inside(moved) {
+            return moved;
         }
+        // Shorter steps; the boundary point if nothing is inside.
+        let mut step = first;
+        for _ in 0..8 {
+            step *= 0.5;
+            let p = best + to_st(step);
+            if inside(p) {
+                return p;
+            }
+        }
+        best
     }
 
     /// The open segment `a -> b` (world space) passes through the face: its endpoints lie strictly

@@ -245,6 +245,75 @@ mod tests {
         }
     }
 
+    /// Every point outside the face is brought inside it, at least half the inset from its
+    /// boundary (world distance), at straight edges, convex and acute corners and around holes.
+    #[test]
+    fn stand_ins_of_outside_points_sit_inside_the_face_off_its_boundary() {
+        let v = |x: f64, y: f64| DVec2::new(x, y);
+        let l_with_hole = (
+            vec![
+                v(0.0, 0.0),
+                v(4.0, 0.0),
+                v(4.0, 1.5),
+                v(1.5, 1.5),
+                v(1.5, 4.0),
+                v(0.0, 4.0),
+            ],
+            vec![vec![v(0.5, 0.5), v(0.5, 1.0), v(1.0, 1.0), v(1.0, 0.5)]],
+        );
+        // A pentagon with a 20-degree corner at the origin.
+        let a = 20f64.to_radians();
+        let acute = (
+            vec![
+                v(0.0, 0.0),
+                v(4.0, 0.0),
+                v(4.0, 1.0),
+                v(4.0 * a.cos(), 4.0 * a.sin()),
+                v(2.0 * a.cos(), 2.0 * a.sin()),
+            ],
+            vec![],
+        );
+        let inset = 0.01;
+        for (shape, (outer, holes)) in [l_with_hole, acute].into_iter().enumerate() {
+            let d = ExtendedDomain::from_plane_polygon(&outer, &holes).unwrap();
+            let world = |st: DVec2| d.world_point(st);
+            let boundary_distance = |st: DVec2| {
+                let x = world(st);
+                d.rings()
+                    .iter()
+                    .flat_map(|r| (0..r.len()).map(move |i| (r[i], r[(i + 1) % r.len()])))
+                    .map(|(p, q)| {
+                        let (p, q) = (world(p), world(q));
+                        let t = ((x - p).dot(q - p) / (q - p).length_squared()).clamp(0.0, 1.0);
+                        (p + (q - p) * t - x).length()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let mut moved = 0;
+            for i in 0..=40 {
+                for j in 0..=40 {
+                    let st = v(i as f64 / 40.0, j as f64 / 40.0);
+                    if d.contains(st) {
+                        assert_eq!(d.closest_point_inset(st, inset), st);
+                        continue;
+                    }
+                    let p = d.closest_point_inset(st, inset);
+                    assert!(
+                        d.contains(p),
+                        "shape {shape}: {st} -> {p} is not in the face"
+                    );
+                    let dist = boundary_distance(p);
+                    assert!(
+                        dist >= 0.5 * inset,
+                        "shape {shape}: {st} -> {p}: {dist} from the boundary"
+                    );
+                    moved += 1;
+                }
+            }
+            assert!(moved > 100);
+        }
+    }
+
     /// A random star-shaped ring around `c` (simple by construction), counter-clockwise.
     fn star(c: DVec2, radii: &[f64], scale: f64) -> Vec<DVec2> {
         let n = radii.len();

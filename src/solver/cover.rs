@@ -29,7 +29,8 @@ pub struct NodeCover {
     /// Per point of the element's quadrature rule: the covered fraction of its zone of influence.
     pub alpha: [f64; MAX_RULE_POINTS],
     /// Per point of the rule: the root point its visibility rays start from (the point itself
-    /// when on the face, else its closest point on the face).
+    /// when on the face, else its closest point on the face; left as the point itself in an empty
+    /// virtual source element, which never casts a ray).
     pub visibility_point: [DVec2; MAX_RULE_POINTS],
     /// `(1/|e|) * integral over (face inside e) of phi_i`, per basis function.
     pub moments: [f64; MAX_FUNCTIONS],
@@ -92,8 +93,11 @@ impl NodeCover {
                 }
             }
         }
-        for p in cover.visibility_point[..n].iter_mut() {
-            *p = mask.closest_point(*p);
+        // An empty element never emits: as a virtual source it needs no stand-ins.
+        if with_moments || cover.status != ElementStatus::Empty {
+            for p in cover.visibility_point[..n].iter_mut() {
+                *p = mask.closest_point(*p);
+            }
         }
         cover
     }
@@ -168,7 +172,8 @@ pub fn face_integral_by(
     clamp_leaves: bool,
     coeff: impl Fn(usize) -> Rgb,
 ) -> Rgb {
-    let clamp = |x: f64| if clamp_leaves { x.max(0.0) } else { x };
+    // (`if`, not `max`: a NaN must stay visible.)
+    let clamp = |x: f64| if clamp_leaves && x < 0.0 { 0.0 } else { x };
     if root.mask.is_none() {
         return coeff(0).map(|c| clamp(c * root.area_m2));
     }

@@ -108,7 +108,8 @@ impl LightShot<'_> {
         let rrule = self.rules.of(rroot.shape);
         // Extended receivers: points off the face see the light from their closest face point.
         let rcover = match rroot.mask {
-            Some(_) => rcv.covers.get(b).copied(),
+            // Every node of an extended root has its cover (`cover::extend` after each split).
+            Some(_) => Some(rcv.covers[b]),
             None => None,
         };
         let ignore = [rroot.face.0; 2];

@@ -28,6 +28,7 @@ use hierarchy::Hierarchy;
 use quadrature::{rule, zones_of_influence, QuadPoint};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 use visibility::Visibility;
 
@@ -202,19 +203,35 @@ struct Emitter {
 
 enum EmitterShape {
     Polygon(Vec<DVec3>),
-    Rings(Vec<Vec<DVec3>>),
+    Rings(Arc<FaceRings>),
+}
+
+/// The face inside a partly covered element, as world-space rings (see `FaceMask::clip`).
+type FaceRings = Vec<Vec<DVec3>>;
+
+/// The face rings of element `map` of `root` when the element is partly covered (computed once per
+/// source element, not per transfer: clipping is O(n) in the face's edges).
+fn partial_face_rings(
+    root: &ElementRoot,
+    map: &ChildMap,
+    cover: Option<&NodeCover>,
+) -> Option<Arc<FaceRings>> {
+    match (&root.mask, cover) {
+        (Some(mask), Some(c)) if c.status == ElementStatus::Partial => Some(Arc::new(
+            mask.clip(node_box(map))
+                .iter()
+                .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
+                .collect(),
+        )),
+        _ => None,
+    }
 }
 
 impl Emitter {
-    fn new(root: &ElementRoot, patch: &Patch, map: &ChildMap, cover: Option<&NodeCover>) -> Self {
-        let shape = match (&root.mask, cover) {
-            (Some(mask), Some(c)) if c.status == ElementStatus::Partial => EmitterShape::Rings(
-                mask.clip(node_box(map))
-                    .iter()
-                    .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
-                    .collect(),
-            ),
-            _ => {
+    fn new(root: &ElementRoot, patch: &Patch, rings: Option<&Arc<FaceRings>>) -> Self {
+        let shape = match rings {
+            Some(r) => EmitterShape::Rings(r.clone()),
+            None => {
                 let mut polygon = Vec::with_capacity(4);
                 patch.corners(root.shape, &mut polygon);
                 EmitterShape::Polygon(polygon)
@@ -285,7 +302,7 @@ impl Patch {
 }
 
 /// The source of a transfer: an element of the shooter, stored or virtual (computed by push).
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 struct Source {
     map: ChildMap,
     depth: u8,
@@ -295,6 +312,8 @@ struct Source {
     coeffs: [Rgb; MAX_FUNCTIONS],
     /// Extended shooter only: how the element covers the face.
     cover: Option<NodeCover>,
+    /// A partly covered element's face, for its exact form factor.
+    rings: Option<Arc<FaceRings>>,
 }
 
 struct ShotContext<'a> {
@@ -337,12 +356,13 @@ impl ShotContext<'_> {
             let map = s.map.then(&maps[c]);
             let cover = match (&sroot.mask, stored) {
                 (None, _) => None,
-                (Some(_), Some(child)) => h.covers.get(child).copied(),
+                (Some(_), Some(child)) => Some(h.covers[child]),
                 (Some(mask), None) => {
                     Some(NodeCover::new(mask, &map, &self.rules.cover, basis, false))
                 }
             };
             Source {
+                rings: partial_face_rings(sroot, &map, cover.as_ref()),
                 map,
                 depth: s.depth + 1,
                 node: stored,
@@ -373,10 +393,11 @@ impl ShotContext<'_> {
         let rnode = rcv.nodes[b];
         let rp = Patch::new(rroot, &rnode.map);
         let rcover = match rroot.mask {
-            Some(_) => rcv.covers.get(b).copied(),
+            // Every node of an extended root has its cover (`cover::extend` after each split).
+            Some(_) => Some(rcv.covers[b]),
             None => None,
         };
-        let emitter = Emitter::new(sroot, &sp, &src.map, src.cover.as_ref());
+        let emitter = Emitter::new(sroot, &sp, src.rings.as_ref());
 
         let srule = self.rules.of(sroot.shape);
         let rrule = self.rules.of(rroot.shape);
@@ -641,25 +662,21 @@ impl ShotContext<'_> {
         let sroot = &self.roots[self.source_root];
         let (n_r, n_s) = (rroot.normal, sroot.normal);
         let ignore = [sroot.face.0, rroot.face.0];
-        let source_points: Vec<(DVec3, DVec3)> = corner_probe_points(sroot.shape)
-            .iter()
-            .map(|&ss| {
-                (
-                    sroot.frame.point(smap.apply(ss)),
-                    visibility_point(sroot, smap, ss),
-                )
-            })
-            .collect();
+        let source_corners = corner_probe_points(sroot.shape);
+        // Stand-ins are computed when first needed (O(n) in the face's edges off the face).
+        let mut source_vis: [Option<DVec3>; 5] = [None; 5];
         for &rs in corner_probe_points(rroot.shape) {
             let x = rroot.frame.point(rmap.apply(rs));
             let mut x_vis = None;
-            for &(y, y_vis) in &source_points {
+            for (j, &ss) in source_corners.iter().enumerate() {
+                let y = sroot.frame.point(smap.apply(ss));
                 // Only pairs that exchange light count.
                 if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
                     continue;
                 }
                 let xv = *x_vis.get_or_insert_with(|| visibility_point(rroot, rmap, rs));
-                if self.visibility.visible(xv, y_vis, ignore) != quadrature_visible {
+                let yv = *source_vis[j].get_or_insert_with(|| visibility_point(sroot, smap, ss));
+                if self.visibility.visible(xv, yv, ignore) != quadrature_visible {
                     return true;
                 }
             }
@@ -772,8 +789,8 @@ pub fn solve(
         .filter(|&i| mean_rgb_sum(roots[i].exitance) > 0.0)
         .collect();
     direct_queue.sort_by(|&a, &b| {
-        (mean_rgb_sum(roots[b].exitance) * roots[b].area_m2)
-            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].area_m2))
+        (mean_rgb_sum(roots[b].exitance) * roots[b].face_area_m2)
+            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].face_area_m2))
     });
     for &i in &direct_queue {
         // The emission is a constant: coefficient 0 of every node (what lights left unshot stays).
@@ -845,12 +862,14 @@ pub fn solve(
         } else {
             root_coeffs[..sbasis_len].copy_from_slice(source_h.coeffs(&source_h.u, 0));
         }
+        let cover = source_h.covers.first().copied();
         let source = Source {
             map: ChildMap::IDENTITY,
             depth: 0,
             node: Some(0),
             coeffs: root_coeffs,
-            cover: source_h.covers.first().copied(),
+            rings: partial_face_rings(&roots[shooter], &ChildMap::IDENTITY, cover.as_ref()),
+            cover,
         };
         {
             let ctx = ShotContext {
@@ -1058,7 +1077,13 @@ impl Solution {
     /// Mean radiosity B over the root's face (emission included), W/m^2.
     pub fn mean_radiosity(&self, root: usize) -> Rgb {
         let r = &self.roots[root];
-        let h = self.face_mean_irradiance(root, false);
+        // Unclamped: the raw integral, so checks of it see what the solver computed.
+        let h = if r.mask.is_some() && r.face_area_m2 > 0.0 {
+            let hs = &self.hierarchies[root];
+            face_integral(hs, &hs.h, r).map(|x| x / r.face_area_m2)
+        } else {
+            self.hierarchies[root].h[0]
+        };
         [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
     }
 }
