@@ -124,26 +124,53 @@ fn nothing_is_received_behind_a_one_sided_emitter() {
         DVec3::Z * 2.0,
         1,
     );
-    let glb = b.to_glb();
+    let square_receiver = b.to_glb();
+    // The same with an L-shaped receiver (one extended face: its domain straddles the plane).
+    let mut b = SceneBuilder::new();
+    let recv = b.material([1.0; 3], [0.0; 3], false);
+    let emit = b.material([0.0; 3], [1.0; 3], false);
+    b.quad(emit, DVec3::ZERO, DVec3::Y, DVec3::X, 1);
+    b.quad(
+        recv,
+        DVec3::new(0.0, 1.5, -1.0),
+        DVec3::X,
+        DVec3::Z * 2.0,
+        1,
+    );
+    b.quad(
+        recv,
+        DVec3::new(1.0, 1.5, -1.0),
+        DVec3::X * 0.5,
+        DVec3::Z * 0.5,
+        1,
+    );
+    let l_receiver = b.to_glb();
     let probe = |z: f64| ProbePoint {
         p: [0.5, 1.5, z],
         n: [0.0, -1.0, 0.0],
     };
     let probes = [probe(-0.5), probe(0.5), probe(0.9)];
-    for mode in MODES {
-        for order in [1, 2] {
-            let (prepared, sol) = solve(&glb, order, mode);
-            let v = evaluate_probes(&sol, &probes, prepared.diagonal);
-            let l: Vec<f64> = v.iter().map(|p| p.l.expect("on the receiver")[0]).collect();
-            println!(
-                "{mode:?} M{order}: in front {:.5}, behind {:.6} {:.6}",
-                l[0], l[1], l[2]
-            );
-            assert!(l[0] > 0.01, "the front half is lit");
-            assert!(
-                l[1] < 0.01 * l[0] && l[2] < 0.01 * l[0],
-                "{mode:?} M{order}: light behind the emitter: {l:?}"
-            );
+    for (glb, masked) in [(square_receiver, false), (l_receiver, true)] {
+        for mode in MODES {
+            for order in [1, 2] {
+                let (prepared, sol) = solve(&glb, order, mode);
+                let extended_roots = sol.roots.iter().filter(|r| r.mask.is_some()).count();
+                assert_eq!(
+                    extended_roots,
+                    usize::from(masked && mode == DomainMode::Extended)
+                );
+                let v = evaluate_probes(&sol, &probes, prepared.diagonal);
+                let l: Vec<f64> = v.iter().map(|p| p.l.expect("on the receiver")[0]).collect();
+                println!(
+                    "{mode:?} M{order}: in front {:.5}, behind {:.6} {:.6}",
+                    l[0], l[1], l[2]
+                );
+                assert!(l[0] > 0.01, "the front half is lit");
+                assert!(
+                    l[1] < 0.01 * l[0] && l[2] < 0.01 * l[0],
+                    "{mode:?} M{order}: light behind the emitter: {l:?}"
+                );
+            }
         }
     }
 }
@@ -197,6 +224,97 @@ fn furnace_is_two_at_every_probe_for_all_orders_and_both_modes() {
 
 /// A unit square at height `z` facing `normal_up`, with or without a centred 0.5 x 0.5 hole, as
 /// eight triangles (the ring between two squares) or two.
+/// The furnace again, with every wall a ring (material `a`) around a centre square (material
+/// `b`): each ring is an extended face with a hole, so extended mode solves on masked domains.
+#[test]
+fn furnace_with_holed_walls_in_both_modes() {
+    let mut b = SceneBuilder::new();
+    let ring = b.material([0.5; 3], [1.0; 3], false);
+    let centre = b.material([0.5; 3], [1.0; 3], false);
+    let walls = [
+        (DVec3::ZERO, DVec3::X, DVec3::Y),
+        (DVec3::Z, DVec3::Y, DVec3::X),
+        (DVec3::ZERO, DVec3::Z, DVec3::X),
+        (DVec3::Y, DVec3::X, DVec3::Z),
+        (DVec3::ZERO, DVec3::Y, DVec3::Z),
+        (DVec3::X, DVec3::Z, DVec3::Y),
+    ];
+    for (o, e1, e2) in walls {
+        // A 3 x 3 grid of quads of unequal widths (0.3, 0.3, 0.4): the middle one is the centre.
+        let cuts = [0.0, 0.3, 0.6, 1.0];
+        for i in 0..3 {
+            for j in 0..3 {
+                let m = if i == 1 && j == 1 { centre } else { ring };
+                b.quad(
+                    m,
+                    o + e1 * cuts[i] + e2 * cuts[j],
+                    e1 * (cuts[i + 1] - cuts[i]),
+                    e2 * (cuts[j + 1] - cuts[j]),
+                    1,
+                );
+            }
+        }
+    }
+    let glb = b.to_glb();
+    let mut probes = Vec::new();
+    for &(u, v) in &[
+        (0.1, 0.1),
+        (0.45, 0.45),
+        (0.7, 0.35),
+        (0.02, 0.98),
+        (0.29, 0.5),
+    ] {
+        probes.push(ProbePoint {
+            p: [u, v, 0.0],
+            n: [0.0, 0.0, 1.0],
+        });
+        probes.push(ProbePoint {
+            p: [1.0, u, v],
+            n: [-1.0, 0.0, 0.0],
+        });
+    }
+    for mode in MODES {
+        for order in [1, 2, 3] {
+            let (prepared, sol) = solve(&glb, order, mode);
+            if mode == DomainMode::Extended {
+                assert!(sol.roots.iter().filter(|r| r.mask.is_some()).count() == 6);
+            }
+            let worst_mean = (0..sol.roots.len())
+                .map(|i| (sol.mean_value(i)[0] - 2.0).abs() / 2.0)
+                .fold(0.0, f64::max);
+            let values = evaluate_probes(&sol, &probes, prepared.diagonal);
+            let worst_probe = values
+                .iter()
+                .map(|v| (v.l.expect("on a wall")[0] - 2.0).abs() / 2.0)
+                .fold(0.0, f64::max);
+            println!(
+                "holed furnace {mode:?} M{order}: worst face mean {:.3} %, worst probe {:.3} %",
+                worst_mean * 100.0,
+                worst_probe * 100.0
+            );
+            // Face means hold the furnace in both modes. Probes: extended domains meet the
+            // issue's 0.5 % at M2 and M3 (0.35 / 0.07 % measured); M1 misses it as in the plain
+            // furnace (9 %), and the tessellated baseline misses it at the triangles' corners
+            // around the holes (15 / 0.99 / 0.65 % measured): bounds at their measured sizes.
+            let mean_bound = if order == 1 { 0.01 } else { 0.005 };
+            assert!(
+                worst_mean <= mean_bound,
+                "{mode:?} M{order}: a face mean is off by {worst_mean}"
+            );
+            let bound = match (mode, order) {
+                (_, 1) => 0.16,
+                (DomainMode::Extended, _) => 0.005,
+                (DomainMode::Tessellated, 2) => 0.015,
+                (DomainMode::Tessellated, _) => 0.01,
+            };
+            assert!(
+                worst_probe <= bound,
+                "{mode:?} M{order}: worst probe off by {worst_probe}"
+            );
+        }
+    }
+}
+
 fn square(b: &mut SceneBuilder, m: u32, z: f64, facing_up: bool, hole: bool) {
     let (u, v) = if facing_up {
         (DVec3::X, DVec3::Y)
