@@ -17,7 +17,7 @@ pub struct Prepared {
     pub roots: Vec<ElementRoot>,
     /// Per face id: the extended domain of an extended face (its roots carry it as their `FaceMask`
     /// in extended mode).
-    pub extended: Vec<Option<ExtendedDomain>>,
+    pub extended: Vec<Option<std::sync::Arc<ExtendedDomain>>>,
     pub visibility: Visibility,
     pub diagonal: f64,
 }

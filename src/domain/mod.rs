@@ -219,7 +219,7 @@ pub struct Domains {
     pub surfaces: Vec<Surface>,
     /// Per face id: the extended domain of an extended face (its front side's frame), `None` for
     /// triangles and parallelograms (and for an extended face whose rings are not finite).
-    pub extended: Vec<Option<ExtendedDomain>>,
+    pub extended: Vec<Option<Arc<ExtendedDomain>>>,
 }
 
 /// A rectangle in the face's plane enclosing its outer ring, aligned with its longest edge, with
@@ -308,15 +308,17 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
         let material = &scene.materials[face.material as usize];
         let exitance = material.emission.map(|e| std::f64::consts::PI * e);
         let extended = match face.kind {
-            FaceKind::Extended => ExtendedDomain::new(&face.outer, &face.holes, face.normal).ok(),
+            FaceKind::Extended => ExtendedDomain::new(&face.outer, &face.holes, face.normal)
+                .ok()
+                .map(Arc::new),
             FaceKind::Triangle | FaceKind::Parallelogram => None,
         };
-        let (shape, frame) = face_frame(face, extended.as_ref());
+        let (shape, frame) = face_frame(face, extended.as_deref());
         // In extended mode an extended face is one root on its domain; the face area from its
         // rings (what the mask's coverage integrates to) so powers and means agree with coverage.
         let masked = match (&extended, mode) {
             (Some(d), DomainMode::Extended) if d.face_area_m2() > 0.0 => {
-                Some((Arc::new(d.clone()), d.face_area_m2()))
+                Some((d.clone(), d.face_area_m2()))
             }
             _ => None,
         };
