@@ -112,45 +112,27 @@ fn point_one_metre_under_the_centre_of_a_unit_square_sees_its_form_factor() {
 /// plane (an overhang above a wall's top, a domain larger than its face) stays dark there.
 #[test]
 fn nothing_is_received_behind_a_one_sided_emitter() {
-    let mut b = SceneBuilder::new();
-    let recv = b.material([1.0; 3], [0.0; 3], false);
-    let emit = b.material([0.0; 3], [1.0; 3], false);
-    // Emitter: x, y in [0, 1] at z = 0, facing -z. Receiver: y = 1.5, facing down, z in [-1, 1].
-    b.quad(emit, DVec3::ZERO, DVec3::Y, DVec3::X, 1);
-    b.quad(
-        recv,
-        DVec3::new(0.0, 1.5, -1.0),
-        DVec3::X,
-        DVec3::Z * 2.0,
-        1,
-    );
-    let square_receiver = b.to_glb();
-    // The same with an L-shaped receiver (one extended face: its domain straddles the plane).
-    let mut b = SceneBuilder::new();
-    let recv = b.material([1.0; 3], [0.0; 3], false);
-    let emit = b.material([0.0; 3], [1.0; 3], false);
-    b.quad(emit, DVec3::ZERO, DVec3::Y, DVec3::X, 1);
-    b.quad(
-        recv,
-        DVec3::new(0.0, 1.5, -1.0),
-        DVec3::X,
-        DVec3::Z * 2.0,
-        1,
-    );
-    b.quad(
-        recv,
-        DVec3::new(1.0, 1.5, -1.0),
-        DVec3::X * 0.5,
-        DVec3::Z * 0.5,
-        1,
-    );
-    let l_receiver = b.to_glb();
+    // Emitter: x, y in [0, 1] at z = 0, facing -z. Receiver: y = 1.5, facing down, z in [-1, 1];
+    // with `arm`, an L (one extended face: its domain straddles the emitter's plane).
+    let scene = |arm: bool| {
+        let mut b = SceneBuilder::new();
+        let recv = b.material([1.0; 3], [0.0; 3], false);
+        let emit = b.material([0.0; 3], [1.0; 3], false);
+        b.quad(emit, DVec3::ZERO, DVec3::Y, DVec3::X, 1);
+        let origin = DVec3::new(0.0, 1.5, -1.0);
+        b.quad(recv, origin, DVec3::X, DVec3::Z * 2.0, 1);
+        if arm {
+            b.quad(recv, origin + DVec3::X, DVec3::X * 0.5, DVec3::Z * 0.5, 1);
+        }
+        b.to_glb()
+    };
     let probe = |z: f64| ProbePoint {
         p: [0.5, 1.5, z],
         n: [0.0, -1.0, 0.0],
     };
     let probes = [probe(-0.5), probe(0.5), probe(0.9)];
-    for (glb, masked) in [(square_receiver, false), (l_receiver, true)] {
+    for masked in [false, true] {
+        let glb = scene(masked);
         for mode in MODES {
             for order in [1, 2] {
                 let (prepared, sol) = solve(&glb, order, mode);

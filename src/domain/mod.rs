@@ -314,14 +314,10 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
             FaceKind::Triangle | FaceKind::Parallelogram => None,
         };
         let (shape, frame) = face_frame(face, extended.as_deref());
-        // In extended mode an extended face is one root on its domain; the face area from its
-        // rings (what the mask's coverage integrates to) so powers and means agree with coverage.
-        let masked = match (&extended, mode) {
-            (Some(d), DomainMode::Extended) if d.face_area_m2() > 0.0 => {
-                Some((d.clone(), d.face_area_m2()))
-            }
-            _ => None,
-        };
+        // In extended mode an extended face is one root on its domain.
+        let masked = extended
+            .clone()
+            .filter(|d| mode == DomainMode::Extended && d.face_area_m2() > 0.0);
         domains.extended.push(extended);
         let sides: &[Side] = if face.double_sided {
             &[Side::Front, Side::Back]
@@ -335,16 +331,15 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                 -face.normal
             };
             let first = domains.roots.len();
-            let mut push_root = |shape: Shape, frame: Frame, mask: Option<(FaceMask, f64)>| {
+            let mut push_root = |shape: Shape, frame: Frame, mask: Option<FaceMask>| {
                 let frame = sided(frame, side);
                 let area = match shape {
                     Shape::Triangle => 0.5 * frame.cross().length(),
                     Shape::Parallelogram => frame.cross().length(),
                 };
-                let (mask, face_area) = match mask {
-                    Some((m, a)) => (Some(m), a),
-                    None => (None, area),
-                };
+                // An extended root's face area from its rings (what the mask's coverage
+                // integrates to), so powers and means agree with coverage.
+                let face_area = mask.as_ref().map_or(area, |m| m.domain().face_area_m2());
                 domains.roots.push(ElementRoot {
                     face: face.id,
                     side,
@@ -361,13 +356,10 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
             };
             match (face.kind, &masked) {
                 (FaceKind::Triangle | FaceKind::Parallelogram, _) => push_root(shape, frame, None),
-                (FaceKind::Extended, Some((domain, face_area))) => push_root(
+                (FaceKind::Extended, Some(domain)) => push_root(
                     shape,
                     frame,
-                    Some((
-                        FaceMask::new(domain.clone(), side == Side::Back, inset),
-                        *face_area,
-                    )),
+                    Some(FaceMask::new(domain.clone(), side == Side::Back, inset)),
                 ),
                 (FaceKind::Extended, None) => {
                     for [a, b, c] in &face.triangulation {

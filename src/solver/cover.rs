@@ -155,6 +155,12 @@ pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: 
     }
 }
 
+/// The cover of node `b` of `root`'s hierarchy: `None` for a native root. Every node of an
+/// extended root has one ([`extend`] runs after each split), so a missing one panics.
+pub fn of_node(h: &Hierarchy, root: &ElementRoot, b: usize) -> Option<NodeCover> {
+    root.mask.as_ref().map(|_| h.covers[b])
+}
+
 /// The integral over the root's face of the function whose coefficients `array` holds (per node,
 /// `h.len` each), per channel: `|root| * coefficient 0` for a native root; over the leaves of an
 /// extended root, each weighted by its face moments.

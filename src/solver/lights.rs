@@ -59,8 +59,17 @@ pub fn unoccluded_irradiance(light: &PunctualLight, x: DVec3, n: DVec3, far: f64
         }
         LightKind::Directional { direction } => {
             let cos = -n.dot(direction);
-            (scale(cos.max(0.0)), x - direction * far)
+            (scale(cos.max(0.0)), shadow_target(light, x, far))
         }
+    }
+}
+
+/// The point a shadow ray from `x` must reach: the light's position, or `far` back along a
+/// directional light.
+pub fn shadow_target(light: &PunctualLight, x: DVec3, far: f64) -> DVec3 {
+    match light.kind {
+        LightKind::Point { position } | LightKind::Spot { position, .. } => position,
+        LightKind::Directional { direction } => x - direction * far,
     }
 }
 
@@ -107,11 +116,7 @@ impl LightShot<'_> {
         let rp = Patch::new(rroot, &rnode.map);
         let rrule = self.rules.of(rroot.shape);
         // Extended receivers: points off the face see the light from their closest face point.
-        let rcover = match rroot.mask {
-            // Every node of an extended root has its cover (`cover::extend` after each split).
-            Some(_) => Some(rcv.covers[b]),
-            None => None,
-        };
+        let rcover = cover::of_node(rcv, rroot, b);
         let ignore = [rroot.face.0; 2];
         let weight: Rgb = match self.quantity {
             Quantity::Radiance => rroot.rho,
@@ -131,15 +136,14 @@ impl LightShot<'_> {
                 continue;
             }
             unoccluded_max = unoccluded_max.max(weighted(e));
-            let (x_vis, target) = match &rcover {
-                Some(c) if rroot.frame.point(c.visibility_point[k]) != x => {
-                    let xv = rroot.frame.point(c.visibility_point[k]);
-                    (
-                        xv,
-                        unoccluded_irradiance(self.light, xv, rroot.normal, self.far).1,
-                    )
-                }
-                _ => (x, target),
+            let x_vis = match &rcover {
+                Some(c) => rroot.frame.point(c.visibility_point[k]),
+                None => x,
+            };
+            let target = if x_vis == x {
+                target
+            } else {
+                shadow_target(self.light, x_vis, self.far)
             };
             if self.visibility.visible(x_vis, target, ignore) {
                 any_visible = true;
@@ -205,7 +209,7 @@ impl LightShot<'_> {
                 return false;
             }
             let xv = visibility_point(rroot, map, st);
-            let target = unoccluded_irradiance(self.light, xv, rroot.normal, self.far).1;
+            let target = shadow_target(self.light, xv, self.far);
             self.visibility.visible(xv, target, ignore) != visible
         })
     }

@@ -392,11 +392,7 @@ impl ShotContext<'_> {
         let sp = Patch::new(sroot, &src.map);
         let rnode = rcv.nodes[b];
         let rp = Patch::new(rroot, &rnode.map);
-        let rcover = match rroot.mask {
-            // Every node of an extended root has its cover (`cover::extend` after each split).
-            Some(_) => Some(rcv.covers[b]),
-            None => None,
-        };
+        let rcover = cover::of_node(rcv, rroot, b);
         let emitter = Emitter::new(sroot, &sp, src.rings.as_ref());
 
         let srule = self.rules.of(sroot.shape);
@@ -1045,9 +1041,9 @@ impl Solution {
     }
 
     /// Mean over the root's face of the irradiance received (all light, or indirect only):
-    /// coefficient 0 for a native root; for an extended one the integral over
-    /// its face, each leaf's part clamped at 0.
-    fn face_mean_irradiance(&self, root: usize, indirect: bool) -> Rgb {
+    /// coefficient 0 for a native root; for an extended one the integral over its face, each
+    /// leaf's part clamped at 0 when `clamp_leaves`.
+    fn face_mean_irradiance(&self, root: usize, indirect: bool, clamp_leaves: bool) -> Rgb {
         let r = &self.roots[root];
         let h = &self.hierarchies[root];
         let coeff = |k: usize| -> Rgb {
@@ -1060,7 +1056,7 @@ impl Solution {
         if r.mask.is_none() || r.face_area_m2 <= 0.0 {
             return coeff(0);
         }
-        cover::face_integral_by(h, r, true, coeff).map(|x| x / r.face_area_m2)
+        cover::face_integral_by(h, r, clamp_leaves, coeff).map(|x| x / r.face_area_m2)
     }
 
     /// Mean of the requested quantity over the root's face, clamped at 0: light is never negative,
@@ -1068,7 +1064,7 @@ impl Solution {
     /// negative light, and a face in full shadow can end a hair below 0 (1e-6 of the scene's mean
     /// on the Red Eclipse level).
     pub fn mean_value(&self, root: usize) -> Rgb {
-        let mean_h = self.face_mean_irradiance(root, self.params.indirect_only);
+        let mean_h = self.face_mean_irradiance(root, self.params.indirect_only, true);
         // (`if`, not `max`: a NaN must stay visible.)
         self.quantity_from_irradiance(root, mean_h)
             .map(|v| if v < 0.0 { 0.0 } else { v })
@@ -1078,12 +1074,7 @@ impl Solution {
     pub fn mean_radiosity(&self, root: usize) -> Rgb {
         let r = &self.roots[root];
         // Unclamped: the raw integral, so checks of it see what the solver computed.
-        let h = if r.mask.is_some() && r.face_area_m2 > 0.0 {
-            let hs = &self.hierarchies[root];
-            face_integral(hs, &hs.h, r).map(|x| x / r.face_area_m2)
-        } else {
-            self.hierarchies[root].h[0]
-        };
+        let h = self.face_mean_irradiance(root, false, false);
         [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
     }
 }
