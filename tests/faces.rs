@@ -905,6 +905,34 @@ fn a_box_standing_on_a_floor_cuts_its_footprint_out() {
 }
 
 #[test]
+fn a_box_whose_walls_have_vertices_along_their_base_still_cuts_its_footprint_out() {
+    // Each wall is 3 x 3 quads: its base is three collinear contact segments, and no cut line
+    // crosses the footprint's side at the inner joints, so the floor piece along a side spans
+    // several segments. It must still not join the footprint to the floor around it.
+    let f = floor_with(|b, m| {
+        let lo = DVec3::new(-0.25, 0.0, -0.25);
+        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
+        b.quad(m, lo, z, y, 3); // -x
+        b.quad(m, lo + x, y, z, 3); // +x
+        b.quad(m, lo, y, x, 3); // -z
+        b.quad(m, lo + z, x, y, 3); // +z
+        b.quad(m, lo + y, z, x, 3); // top
+    });
+    let floor = floor_faces(&f);
+    let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
+    areas.sort_by(f64::total_cmp);
+    assert_eq!(
+        areas.len(),
+        2,
+        "the floor around the box and its footprint: {areas:?}"
+    );
+    assert!(
+        (areas[0] - 0.25).abs() < 1e-9 && (areas[1] - 3.75).abs() < 1e-9,
+        "{areas:?}"
+    );
+}
+
+#[test]
 fn a_wall_across_a_floor_splits_it_and_one_ending_inside_does_not() {
     // Across: the wall's base runs from z = -1 to z = 1 at x = 0.25.
     let f = floor_with(|b, m| {

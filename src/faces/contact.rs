@@ -30,6 +30,9 @@ pub struct ContactCut {
     /// For each piece, the index of its scene triangle.
     pub source: Vec<u32>,
     /// Every contact segment found (world frame), the lines pieces must not be merged across.
+    /// Collinear segments that continue or overlap one another are joined into one (a wall's base
+    /// made of several triangle edges is one segment), so that a piece edge spanning their joint
+    /// still lies on one segment.
     pub segments: Vec<[DVec3; 2]>,
     /// Number of scene triangles that were cut.
     pub triangles_cut: usize,
@@ -246,7 +249,7 @@ pub fn cut_at_contacts(
     let mut cut = ContactCut {
         pieces: Vec::with_capacity(n + 4 * contacts.len()),
         source: Vec::with_capacity(n + 4 * contacts.len()),
-        segments,
+        segments: join_collinear(&segments, tol.length_m),
         triangles_cut: 0,
     };
     for (i, t) in triangles.iter().enumerate() {
@@ -270,6 +273,115 @@ pub fn cut_at_contacts(
         }
     }
     cut
+}
+
+/// Joins segments that lie on one line and share an end (within `eps`), directly or through a
+/// chain of others, and returns the union of each chain's intervals: one segment per connected
+/// stretch of line. Segments that touch nothing pass through unchanged.
+fn join_collinear(segments: &[[DVec3; 2]], eps: f64) -> Vec<[DVec3; 2]> {
+    let n = segments.len();
+    if n < 2 || eps.is_nan() || eps <= 0.0 {
+        return segments.to_vec();
+    }
+    // Ends by cell (cells of 4 eps: ends within eps of one another are in adjacent cells).
+    let inv = 0.25 / eps;
+    let cell = |p: DVec3| {
+        (
+            (p.x * inv).floor() as i64,
+            (p.y * inv).floor() as i64,
+            (p.z * inv).floor() as i64,
+        )
+    };
+    let mut ends: FastMap<(i64, i64, i64), Vec<u32>> = FastMap::default();
+    for (i, seg) in segments.iter().enumerate() {
+        for (e, &p) in seg.iter().enumerate() {
+            ends.entry(cell(p)).or_default().push((2 * i + e) as u32);
+        }
+    }
+    let off_line = |[a, b]: [DVec3; 2], p: DVec3| {
+        let d = b - a;
+        let len2 = d.length_squared();
+        if len2 == 0.0 {
+            return p.distance(a);
+        }
+        (p - a - d * ((p - a).dot(d) / len2)).length()
+    };
+    // Union-find over segments sharing an end and a line.
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut i: usize) -> usize {
+        while parent[i] != i {
+            parent[i] = parent[parent[i]];
+            i = parent[i];
+        }
+        i
+    }
+    for i in 0..n {
+        for e in 0..2 {
+            let p = segments[i][e];
+            let (cx, cy, cz) = cell(p);
+            for x in cx - 1..=cx + 1 {
+                for y in cy - 1..=cy + 1 {
+                    for z in cz - 1..=cz + 1 {
+                        let Some(list) = ends.get(&(x, y, z)) else {
+                            continue;
+                        };
+                        for &code in list {
+                            let (j, f) = (code as usize / 2, code as usize % 2);
+                            if j <= i || p.distance(segments[j][f]) > eps {
+                                continue;
+                            }
+                            if off_line(segments[i], segments[j][1 - f]) <= eps
+                                && off_line(segments[j], segments[i][1 - e]) <= eps
+                            {
+                                let (ri, rj) = (root(&mut parent, i), root(&mut parent, j));
+                                parent[ri.max(rj)] = ri.min(rj);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let mut chains: FastMap<usize, Vec<usize>> = FastMap::default();
+    for i in 0..n {
+        let r = root(&mut parent, i);
+        chains.entry(r).or_default().push(i);
+    }
+    let mut roots: Vec<usize> = chains.keys().copied().collect();
+    roots.sort_unstable();
+    let mut out = Vec::with_capacity(roots.len());
+    for r in roots {
+        let members = &chains[&r];
+        let [a0, b0] = segments[members[0]];
+        let d = (b0 - a0).normalize_or_zero();
+        // Each member as an interval along d, with its end points.
+        let mut spans: Vec<(f64, DVec3, f64, DVec3)> = members
+            .iter()
+            .map(|&m| {
+                let [p, q] = segments[m];
+                let (tp, tq) = ((p - a0).dot(d), (q - a0).dot(d));
+                if tp <= tq {
+                    (tp, p, tq, q)
+                } else {
+                    (tq, q, tp, p)
+                }
+            })
+            .collect();
+        spans.sort_by(|x, y| x.0.total_cmp(&y.0));
+        let mut current = spans[0];
+        for &s in &spans[1..] {
+            if s.0 <= current.2 + eps {
+                if s.2 > current.2 {
+                    (current.2, current.3) = (s.2, s.3);
+                }
+            } else {
+                out.push([current.1, current.3]);
+                current = s;
+            }
+        }
+        out.push([current.1, current.3]);
+    }
+    out
 }
 
 /// Is the edge `p q` of a triangle whose third corner is `r` a contact segment of triangle `t`
@@ -536,5 +648,27 @@ mod tests {
         for p in floor_pieces {
             assert!(p.area() > 1e-3, "sliver of area {}", p.area());
         }
+    }
+
+    #[test]
+    fn collinear_segments_that_continue_one_another_are_joined() {
+        let v = |x: f64, z: f64| DVec3::new(x, 0.0, z);
+        let joined = join_collinear(
+            &[
+                [v(0.0, 0.0), v(1.0, 0.0)],
+                [v(2.0, 0.0), v(1.0, 0.0)], // continues the first, reversed
+                [v(0.5, 0.0), v(1.5, 0.0)], // overlaps both, shares no end
+                [v(1.0, 0.0), v(1.0, 1.0)], // perpendicular at the joint
+                [v(3.0, 0.0), v(4.0, 0.0)], // same line, past a gap
+            ],
+            1e-9,
+        );
+        let mut lengths: Vec<f64> = joined.iter().map(|[a, b]| a.distance(*b)).collect();
+        lengths.sort_by(f64::total_cmp);
+        // The overlapping one shares no end, so it stays as it is.
+        assert_eq!(lengths, vec![1.0, 1.0, 1.0, 2.0], "{joined:?}");
+        assert!(joined
+            .iter()
+            .any(|s| s.contains(&v(0.0, 0.0)) && s.contains(&v(2.0, 0.0))));
     }
 }

@@ -130,22 +130,17 @@ impl LightShot<'_> {
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
             rbasis.eval(q.st, &mut psi[k]);
-            let x = rp.point(q.st);
+            // Off an extended face, the stand-in receives for the point (see `transfer`).
+            let x = match &rcover {
+                Some(c) => rroot.frame.point(c.visibility_point[k]),
+                None => rp.point(q.st),
+            };
             let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
             if mean_rgb_sum(e) <= 0.0 {
                 continue;
             }
             unoccluded_max = unoccluded_max.max(weighted(e));
-            let x_vis = match &rcover {
-                Some(c) => rroot.frame.point(c.visibility_point[k]),
-                None => x,
-            };
-            let target = if x_vis == x {
-                target
-            } else {
-                shadow_target(self.light, x_vis, self.far)
-            };
-            if self.visibility.visible(x_vis, target, ignore) {
+            if self.visibility.visible(x, target, ignore) {
                 any_visible = true;
                 e_k[k] = e;
                 for a in 0..nr {
@@ -166,8 +161,12 @@ impl LightShot<'_> {
             // Near the element's corners, which the interior quadrature points do not sample.
             let mut phi = [0.0; MAX_FUNCTIONS];
             for &st in corner_probe_points(rroot.shape) {
-                let (e, _) =
-                    unoccluded_irradiance(self.light, rp.point(st), rroot.normal, self.far);
+                let x = if rcover.is_some() {
+                    visibility_point(rroot, &rnode.map, st)
+                } else {
+                    rp.point(st)
+                };
+                let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
                 rbasis.eval(st, &mut phi);
                 err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
             }
@@ -203,12 +202,11 @@ impl LightShot<'_> {
     fn corner_rays_disagree(&self, map: &ChildMap, rroot: &ElementRoot, visible: bool) -> bool {
         let ignore = [rroot.face.0; 2];
         corner_probe_points(rroot.shape).iter().any(|&st| {
-            let x = rroot.frame.point(map.apply(st));
-            let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
+            let xv = visibility_point(rroot, map, st);
+            let (e, _) = unoccluded_irradiance(self.light, xv, rroot.normal, self.far);
             if mean_rgb_sum(e) <= 0.0 {
                 return false;
             }
-            let xv = visibility_point(rroot, map, st);
             let target = shadow_target(self.light, xv, self.far);
             self.visibility.visible(xv, target, ignore) != visible
         })

@@ -439,10 +439,14 @@ impl ShotContext<'_> {
         // Unoccluded irradiance at the receiver points, sum over channels weighted as the oracle's.
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
-            let x = rp.point(q.st);
-            let x_vis = match &rcover {
+            // A point of an extended domain off its face receives as its stand-in (its closest
+            // point on the face) in visibility and kernel alike: the extension is then continuous
+            // across the face's border. With the kernel at the point itself, a wall standing on
+            // the border inside the domain is seen from behind on one side of it and from the
+            // front on the other, and elements straddling the border average the two.
+            let x = match &rcover {
                 Some(c) => rroot.frame.point(c.visibility_point[k]),
-                None => x,
+                None => rp.point(q.st),
             };
             rbasis.eval(q.st, &mut psi[k]);
             let f_exact = emitter.form_factor(x, rroot.normal);
@@ -467,7 +471,7 @@ impl ShotContext<'_> {
                     * sp.area
                     * ql.weight
                     * alpha[l];
-                let vis = self.visibility.visible(x_vis, ys_vis[l], ignore);
+                let vis = self.visibility.visible(x, ys_vis[l], ignore);
                 if vis {
                     any_visible = true;
                     visible_weight += ql.weight * alpha[l];
@@ -530,7 +534,12 @@ impl ShotContext<'_> {
             // irradiance of the source's mean at points near the corners with the projection.
             let mut phi = [0.0; MAX_FUNCTIONS];
             for &st in corner_probe_points(rroot.shape) {
-                let x = rp.point(st);
+                // Off the face, the stand-in receives for the point (as in the transfer above).
+                let x = if rcover.is_some() {
+                    visibility_point(rroot, &rnode.map, st)
+                } else {
+                    rp.point(st)
+                };
                 let f = emitter.form_factor(x, rroot.normal);
                 rbasis.eval(st, &mut phi);
                 let e = src.coeffs[0].map(|c| f * c);
@@ -659,20 +668,19 @@ impl ShotContext<'_> {
         let (n_r, n_s) = (rroot.normal, sroot.normal);
         let ignore = [sroot.face.0, rroot.face.0];
         let source_corners = corner_probe_points(sroot.shape);
-        // Stand-ins are computed when first needed (O(n) in the face's edges off the face).
+        // Source stand-ins are computed when first needed (O(n) in the face's edges off the face).
         let mut source_vis: [Option<DVec3>; 5] = [None; 5];
         for &rs in corner_probe_points(rroot.shape) {
-            let x = rroot.frame.point(rmap.apply(rs));
-            let mut x_vis = None;
+            // The receiver's point receives as its stand-in (see `transfer`).
+            let x = visibility_point(rroot, rmap, rs);
             for (j, &ss) in source_corners.iter().enumerate() {
                 let y = sroot.frame.point(smap.apply(ss));
                 // Only pairs that exchange light count.
                 if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
                     continue;
                 }
-                let xv = *x_vis.get_or_insert_with(|| visibility_point(rroot, rmap, rs));
                 let yv = *source_vis[j].get_or_insert_with(|| visibility_point(sroot, smap, ss));
-                if self.visibility.visible(xv, yv, ignore) != quadrature_visible {
+                if self.visibility.visible(x, yv, ignore) != quadrature_visible {
                     return true;
                 }
             }
