@@ -2,7 +2,8 @@
 //! baking diffuse lightmaps for glTF scenes.
 //!
 //! Modules in data-flow order; each depends only on those before it (see ARCHITECTURE.md):
-//! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`.
+//! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`; `reference` measures
+//! solutions against Monte Carlo references (tests and benches).
 
 // Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;
 // iterator chains would hide the formulas.
@@ -14,6 +15,7 @@ pub mod faces;
 pub mod job;
 pub mod output;
 pub mod pipeline;
+pub mod reference;
 pub mod scene;
 pub mod service;
 pub mod solver;

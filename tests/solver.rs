@@ -192,10 +192,12 @@ fn furnace_is_two_at_every_probe_for_all_orders_and_both_modes() {
                 worst * 100.0
             );
             // Issue 5 asks 0.5 % at every order. M1 misses it at the probe 2 cm from a corner
-            // (+8.4 %): links from the far walls are gathered at coarser levels than those from the
-            // adjacent ones, and their piecewise-constant projections do not sum to the constant.
-            // A known shortfall, held here to its measured size so that it cannot grow unseen.
-            let bound = if order == 1 { 0.09 } else { 0.005 };
+            // (+2.5 % at the default tolerance 2e-6, +8.4 % at 1e-5): links from the far walls are
+            // gathered at coarser levels than those from the adjacent ones, and their piecewise-
+            // constant projections do not sum to the constant. The oracle bounds each link's error
+            // in power, which lets small elements carry larger radiance errors. A known shortfall,
+            // held here to its measured size so that it cannot grow unseen.
+            let bound = if order == 1 { 0.03 } else { 0.005 };
             assert!(
                 worst <= bound,
                 "{mode:?} M{order}: worst probe off by {worst}"
@@ -275,18 +277,20 @@ fn furnace_with_holed_walls_in_both_modes() {
                 worst_probe * 100.0
             );
             // Face means hold the furnace in both modes. Probes: extended domains meet the
-            // issue's 0.5 % at M2 and M3 (0.35 / 0.07 % measured); M1 misses it as in the plain
-            // furnace (9 %), and the tessellated baseline misses it at the triangles' corners
-            // around the holes (15 / 0.99 / 0.65 % measured): bounds at their measured sizes.
+            // issue's 0.5 % at M2 and M3 (0.24 / 0.24 % measured); M1 misses it as in the plain
+            // furnace (2.6 %), and the tessellated baseline misses it at the triangles' corners
+            // around the holes (3.4 / 2.0 / 0.65 % measured; its M2 probe was 0.99 % at the old
+            // default tolerance 1e-5: finer links leave a corner triangle with a larger radiance
+            // error within the same power bound). Bounds at their measured sizes.
             let mean_bound = if order == 1 { 0.01 } else { 0.005 };
             assert!(
                 worst_mean <= mean_bound,
                 "{mode:?} M{order}: a face mean is off by {worst_mean}"
             );
             let bound = match (mode, order) {
-                (_, 1) => 0.16,
+                (_, 1) => 0.04,
                 (DomainMode::Extended, _) => 0.005,
-                (DomainMode::Tessellated, 2) => 0.015,
+                (DomainMode::Tessellated, 2) => 0.025,
                 (DomainMode::Tessellated, _) => 0.01,
             };
             assert!(

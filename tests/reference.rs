@@ -1,0 +1,117 @@
+//! Accuracy against independent Monte Carlo references (issue 5): every data set of
+//! `tests/data/reference/` (copied from `../shared/reference/`; its README defines the metric) is
+//! solved at default settings and its normalised RMS error printed beside the reference's own noise
+//! floor. Issue 5 asks nrms <= 3 % on every set; sets that miss it are listed in [`SHORTFALLS`]
+//! and held to their measured ceiling so they cannot get worse unseen.
+//!
+//! Print the table: `cargo test --release --test reference -- --nocapture`. The target itself, which
+//! fails while a shortfall stands: `cargo test --release --test reference -- --ignored`.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+use wavrad::domain::DomainMode;
+use wavrad::output::probes::evaluate_probes;
+use wavrad::pipeline::bake;
+use wavrad::reference::{ReferenceError, ReferenceSet};
+use wavrad::scene::load_scene_from_path;
+use wavrad::solver::SolverParams;
+
+/// Issue 5's target at default settings.
+const TARGET_NRMS: f64 = 0.03;
+
+/// Sets that miss [`TARGET_NRMS`] at default settings, with the ceiling held here: the measured
+/// nrms plus a margin for platform rounding. Issue 5 stays open while this list is not empty.
+const SHORTFALLS: [(&str, f64); 2] = [
+    ("kenney_building_small_c_lit", 0.09),
+    ("redeclipse_dutility_lit", 0.06),
+];
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Every set, solved at default settings: (name, error, noise floor, seconds).
+fn measure() -> Vec<(String, ReferenceError, f64, f64)> {
+    let dir = root().join("tests/data/reference");
+    let mut sets: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .expect("tests/data/reference is in the repository")
+        .flatten()
+        .map(|d| d.path())
+        .filter(|p| p.join("reference.json").exists())
+        .collect();
+    sets.sort();
+    assert_eq!(sets.len(), 4, "the four data sets of ../shared/reference");
+    let mut out = Vec::new();
+    for set_dir in sets {
+        let name = set_dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let set = ReferenceSet::load(&set_dir).expect("reference.json reads");
+        let scene = load_scene_from_path(&set.scene_in(root()), 5_000_000).expect("scene loads");
+        let start = Instant::now();
+        let (prepared, solution) = bake(
+            &scene,
+            DomainMode::Extended,
+            SolverParams::default(),
+            &AtomicBool::new(false),
+            &mut |_| {},
+        )
+        .expect("bakes");
+        let seconds = start.elapsed().as_secs_f64();
+        let values = evaluate_probes(&solution, &set.probes(), prepared.diagonal);
+        let error = set
+            .error(&values)
+            .unwrap_or_else(|| panic!("{name}: a probe found no surface"));
+        out.push((name, error, set.noise_floor(), seconds));
+    }
+    println!(
+        "{:<30} {:>8} {:>8} {:>26} {:>8}",
+        "data set", "nrms %", "floor %", "rms (R, G, B)", "seconds"
+    );
+    for (name, e, floor, seconds) in &out {
+        println!(
+            "{:<30} {:>8.2} {:>8.2} {:>8.5} {:>8.5} {:>8.5} {:>8.1}{}",
+            name,
+            e.nrms * 100.0,
+            floor * 100.0,
+            e.rms[0],
+            e.rms[1],
+            e.rms[2],
+            seconds,
+            if e.nrms > TARGET_NRMS {
+                "  MISSES the 3 % target"
+            } else {
+                ""
+            }
+        );
+    }
+    out
+}
+
+#[test]
+fn reference_sets_at_default_settings_hold_their_accuracy() {
+    for (name, error, _, _) in measure() {
+        let ceiling = SHORTFALLS
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(TARGET_NRMS, |&(_, c)| c);
+        assert!(
+            error.nrms <= ceiling,
+            "{name}: nrms {:.4} above {ceiling}",
+            error.nrms
+        );
+    }
+}
+
+#[test]
+#[ignore = "issue 5's 3 % target; fails while SHORTFALLS is not empty"]
+fn every_reference_set_meets_the_target() {
+    let misses: Vec<String> = measure()
+        .into_iter()
+        .filter(|(_, e, _, _)| e.nrms > TARGET_NRMS)
+        .map(|(name, e, _, _)| format!("{name} {:.2} %", e.nrms * 100.0))
+        .collect();
+    assert!(misses.is_empty(), "above 3 %: {misses:?}");
+}
