@@ -875,17 +875,20 @@ fn floor_faces(f: &FaceSet) -> Vec<&wavrad::faces::Face> {
     f.faces.iter().filter(|x| x.material == 0).collect()
 }
 
+/// A closed 0.5 m box standing on the middle of [`floor_with`]'s floor, each side `n x n` quads.
+fn standing_box(b: &mut SceneBuilder, m: u32, n: u32) {
+    let lo = DVec3::new(-0.25, 0.0, -0.25);
+    let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
+    b.quad(m, lo, z, y, n); // -x
+    b.quad(m, lo + x, y, z, n); // +x
+    b.quad(m, lo, y, x, n); // -z
+    b.quad(m, lo + z, x, y, n); // +z
+    b.quad(m, lo + y, z, x, n); // top
+}
+
 #[test]
 fn a_box_standing_on_a_floor_cuts_its_footprint_out() {
-    let f = floor_with(|b, m| {
-        let lo = DVec3::new(-0.25, 0.0, -0.25);
-        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
-        b.quad(m, lo, z, y, 1); // -x
-        b.quad(m, lo + x, y, z, 1); // +x
-        b.quad(m, lo, y, x, 1); // -z
-        b.quad(m, lo + z, x, y, 1); // +z
-        b.quad(m, lo + y, z, x, 1); // top
-    });
+    let f = floor_with(|b, m| standing_box(b, m, 1));
     let floor = floor_faces(&f);
     assert_eq!(floor.len(), 2, "the floor around the box and its footprint");
     let around = floor
@@ -909,15 +912,7 @@ fn a_box_whose_walls_have_vertices_along_their_base_still_cuts_its_footprint_out
     // Each wall is 3 x 3 quads: its base is three collinear contact segments, and no cut line
     // crosses the footprint's side at the inner joints, so the floor piece along a side spans
     // several segments. It must still not join the footprint to the floor around it.
-    let f = floor_with(|b, m| {
-        let lo = DVec3::new(-0.25, 0.0, -0.25);
-        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
-        b.quad(m, lo, z, y, 3); // -x
-        b.quad(m, lo + x, y, z, 3); // +x
-        b.quad(m, lo, y, x, 3); // -z
-        b.quad(m, lo + z, x, y, 3); // +z
-        b.quad(m, lo + y, z, x, 3); // top
-    });
+    let f = floor_with(|b, m| standing_box(b, m, 3));
     let floor = floor_faces(&f);
     let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
     areas.sort_by(f64::total_cmp);
