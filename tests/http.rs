@@ -1132,7 +1132,7 @@ async fn read_events(mut response: reqwest::Response) -> Vec<(String, Value)> {
 async fn events_stream_progress_then_done() {
     let base = start(ServiceConfig::new(data_dir("events"))).await;
     let client = client();
-    let job = submit_ok(&client, &base, "order=1", cluttered_scene(3)).await;
+    let job = submit_ok(&client, &base, "order=1&tolerance=1e-4", cluttered_scene(3)).await;
     let id = job["id"].as_str().unwrap().to_string();
     let response = client
         .get(format!("{base}/v1/jobs/{id}/events"))

@@ -438,6 +438,8 @@ impl ShotContext<'_> {
         let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
         let mut any_visible = false;
         let mut any_blocked = false;
+        // Partial visibility: the error the source's sampling may cause at a receiver point.
+        let mut source_side_err: f64 = 0.0;
         // Unoccluded irradiance at the receiver points, sum over channels weighted as the oracle's.
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
@@ -455,12 +457,11 @@ impl ShotContext<'_> {
             if f_exact <= 0.0 {
                 continue;
             }
-            unoccluded_max = unoccluded_max.max(
-                f_exact
-                    * (0..3)
-                        .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
-                        .sum::<f64>(),
-            );
+            let unoccluded = f_exact
+                * (0..3)
+                    .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
+                    .sum::<f64>();
+            unoccluded_max = unoccluded_max.max(unoccluded);
             let mut fq = 0.0;
             let mut g = [0.0; MAX_FUNCTIONS];
             let mut visible_weight = 0.0;
@@ -489,6 +490,12 @@ impl ShotContext<'_> {
                         }
                     }
                 }
+            }
+            if alpha_weight > 0.0 {
+                // Mixed verdicts at this point: its share of the source is only as good as the
+                // source's samples.
+                let v = visible_weight / alpha_weight;
+                source_side_err = source_side_err.max(unoccluded * 2.0 * v.min(1.0 - v).max(0.0));
             }
             if fq > 0.0 && front_points > 0 {
                 if source_partial {
@@ -554,6 +561,8 @@ impl ShotContext<'_> {
             // them. Rays between points near the corners of both elements catch it.
             partial = self.corner_rays_disagree(&rnode.map, rroot, &src.map, any_visible);
         }
+        // The error the control points see across the receiver, before the partial-visibility bound.
+        let receiver_err = err;
         if partial {
             err = err.max(unoccluded_max);
         }
@@ -571,10 +580,16 @@ impl ShotContext<'_> {
                 && src
                     .node
                     .is_some_and(|n| !self.source_hierarchy.nodes[n].is_leaf());
+            // Partial visibility: which side's refinement the error calls for. A shadow boundary
+            // across the receiver (its control points disagree with its projection more than the
+            // source's samples may be wrong at any point) splits the receiver, however large the
+            // source; split source links would each carry too little error to refine it.
+            let receiver_first =
+                partial && receiver_err * rp.area > threshold && receiver_err >= source_side_err;
             let split_source = can_split_s
                 && (!can_split_r
                     || coverage_limited
-                    || (sp.area > rp.area && (partial || source_detail)));
+                    || (sp.area > rp.area && !receiver_first && (partial || source_detail)));
             if split_source {
                 for child in self.source_children(src) {
                     self.transfer(&child, rcv_index, rcv, b);
