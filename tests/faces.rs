@@ -928,6 +928,33 @@ fn a_box_whose_walls_have_vertices_along_their_base_still_cuts_its_footprint_out
 }
 
 #[test]
+fn a_post_passing_through_a_floor_cuts_its_section_out() {
+    // A square post from y = -0.5 to y = 0.5 through the floor: its walls cross the floor's plane
+    // (no edge lies in it), and the floor inside the post is closed off like a footprint.
+    let f = floor_with(|b, m| {
+        let lo = DVec3::new(-0.25, -0.5, -0.25);
+        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y, DVec3::Z * 0.5);
+        b.quad(m, lo, z, y, 1); // -x
+        b.quad(m, lo + x, y, z, 1); // +x
+        b.quad(m, lo, y, x, 1); // -z
+        b.quad(m, lo + z, x, y, 1); // +z
+    });
+    let floor = floor_faces(&f);
+    let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
+    areas.sort_by(f64::total_cmp);
+    assert_eq!(
+        areas.len(),
+        2,
+        "the floor around the post and its section: {areas:?}"
+    );
+    assert!(
+        (areas[0] - 0.25).abs() < 1e-9 && (areas[1] - 3.75).abs() < 1e-9,
+        "{areas:?}"
+    );
+    assert!(floor.iter().any(|x| x.holes.len() == 1));
+}
+
+#[test]
 fn a_wall_across_a_floor_splits_it_and_one_ending_inside_does_not() {
     // Across: the wall's base runs from z = -1 to z = 1 at x = 0.25.
     let f = floor_with(|b, m| {

@@ -1,14 +1,18 @@
-//! Contact lines: where one surface stands on another (a box on a floor, a wall on a slab), the
-//! lower surface's radiosity jumps along the line they meet on, and the part of it under the
-//! upper surface's footprint is usually closed off and dark. The triangles of the lower surface
-//! rarely have edges there. This module finds those lines and cuts the triangles along them, so
-//! that face merging can keep the two sides apart (DESIGN.md section 3: the real surfaces).
+//! Contact lines: where one surface stands on another (a box on a floor, a wall on a slab), or
+//! passes through it (a post through a floor, a pipe through a bracket), the lower surface's
+//! radiosity jumps along the line they meet on, and the part of it under the upper surface's
+//! footprint (or inside the post) is usually closed off and dark. The triangles of the lower
+//! surface rarely have edges there. This module finds those lines and cuts the triangles along
+//! them, so that face merging can keep the two sides apart (DESIGN.md section 3: the real surfaces).
 //!
 //! Owns [`cut_at_contacts`] and [`ContactCut`]. A *contact segment* of a triangle `T` is an edge
 //! of another triangle `S` that lies in `T`'s plane (both ends within the plane tolerance), crosses
 //! `T`'s interior (not only its border), and whose triangle `S` rises on `T`'s radiosity side (either
-//! side when `T` is double-sided). `T` is cut by the line of each of its contact segments into
-//! convex pieces, which are fanned into triangles.
+//! side when `T` is double-sided). A *crossing segment* is where a triangle `S` with corners strictly on
+//! both sides of `T`'s plane passes through it, clipped to `T`; it is found from an edge of `S`
+//! that crosses the plane near `T` (a large `S` whose edges all cross far from a small `T` is
+//! missed). `T` is cut by the line of each of its contact and crossing segments into convex
+//! pieces, which are fanned into triangles.
 //!
 //! Invariants: the pieces of a triangle tile it exactly (their areas sum to its area, up to
 //! rounding), keep its material, source and winding; a cut never makes a piece corner closer than
@@ -200,10 +204,13 @@ pub fn cut_at_contacts(
                     );
                     candidates.clear();
                     grid.for_each_near_segment(p, q, pad, |t| {
-                        // Cheapest test first: both ends in t's plane.
+                        // Cheapest test first: both ends in t's plane (a contact), or on either
+                        // side of it (the triangle passes through t's plane).
                         if let Some((normal, offset)) = planes[t as usize] {
-                            if (normal.dot(p) - offset).abs() <= tol.plane_m
-                                && (normal.dot(q) - offset).abs() <= tol.plane_m
+                            let (hp, hq) = (normal.dot(p) - offset, normal.dot(q) - offset);
+                            if (hp.abs() <= tol.plane_m && hq.abs() <= tol.plane_m)
+                                || (hp > tol.plane_m && hq < -tol.plane_m)
+                                || (hp < -tol.plane_m && hq > tol.plane_m)
                             {
                                 candidates.push(t);
                             }
@@ -217,9 +224,13 @@ pub fn cut_at_contacts(
                             continue;
                         };
                         let tt = &triangles[ti];
-                        if ti != s && is_contact(p, q, r, tt, normal, offset, double_sided(tt), tol)
-                        {
+                        if ti == s {
+                            continue;
+                        }
+                        if is_contact(p, q, r, tt, normal, offset, double_sided(tt), tol) {
                             out.push((t, [p, q]));
+                        } else if let Some(seg) = crossing(st, tt, normal, offset, tol) {
+                            out.push((t, seg));
                         }
                     }
                 }
@@ -235,7 +246,10 @@ pub fn cut_at_contacts(
     let mut segments: Vec<[DVec3; 2]> = Vec::with_capacity(found.len());
     let mut unique: FastSet<[u64; 6]> = FastSet::default();
     for (t, seg) in found {
-        contacts.entry(t).or_default().push(seg);
+        let lines = contacts.entry(t).or_default();
+        if !lines.contains(&seg) {
+            lines.push(seg);
+        }
         let [p, q] = seg;
         let key = [p.x, p.y, p.z, q.x, q.y, q.z].map(f64::to_bits);
         if unique.insert(key) {
@@ -406,12 +420,29 @@ fn is_contact(
     if !(hr > tol.plane_m || (double_sided && hr < -tol.plane_m)) {
         return false;
     }
-    // Clip the segment to the triangle (in its plane); it must cross the interior.
+    crosses_interior(p, q, t, normal, tol)
+}
+
+/// Does the segment `p q` (in the plane of `t`, unit `normal`) cross `t`'s interior over more than
+/// the length tolerance?
+fn crosses_interior(p: DVec3, q: DVec3, t: &Triangle, normal: DVec3, tol: &Tolerances) -> bool {
+    interior_span(p, q, t, normal, tol.length_m)
+        .is_some_and(|(t0, t1)| (t1 - t0) * p.distance(q) > tol.length_m)
+}
+
+/// The parameters `[t0, t1]` of the part of segment `p + (q - p) s` at least `inset` inside `t`'s
+/// edges, when there is one.
+fn interior_span(
+    p: DVec3,
+    q: DVec3,
+    t: &Triangle,
+    normal: DVec3,
+    inset: f64,
+) -> Option<(f64, f64)> {
     let d = q - p;
     let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    let len = d.length();
-    if len <= tol.length_m {
-        return false;
+    if d.length() <= 0.0 {
+        return None;
     }
     for k in 0..3 {
         let a = t.vertices[k];
@@ -421,13 +452,13 @@ fn is_contact(
         let m = m / m.length();
         let f0 = m.dot(p - a);
         let fd = m.dot(d);
-        // Points with m . (x - a) >= tol are strictly inside this edge.
+        // Points with m . (x - a) >= inset are inside this edge.
         if fd.abs() < 1e-300 {
-            if f0 < tol.length_m {
-                return false;
+            if f0 < inset {
+                return None;
             }
         } else {
-            let tc = (tol.length_m - f0) / fd;
+            let tc = (inset - f0) / fd;
             if fd > 0.0 {
                 t0 = t0.max(tc);
             } else {
@@ -435,7 +466,54 @@ fn is_contact(
             }
         }
     }
-    (t1 - t0) * len > tol.length_m
+    (t1 > t0).then_some((t0, t1))
+}
+
+/// Where triangle `s` passes through the plane of triangle `t` (`normal . x = offset`), clipped to
+/// `t`'s interior when it crosses it: the part of `t` inside the solid `s` bounds is closed off
+/// and dark, like a footprint. `s` must have corners strictly on both sides of the plane.
+fn crossing(
+    s: &Triangle,
+    t: &Triangle,
+    normal: DVec3,
+    offset: f64,
+    tol: &Tolerances,
+) -> Option<[DVec3; 2]> {
+    let h = s.vertices.map(|v| normal.dot(v) - offset);
+    if !(h.iter().any(|&x| x > tol.plane_m) && h.iter().any(|&x| x < -tol.plane_m)) {
+        return None;
+    }
+    let mut ends: Vec<DVec3> = Vec::with_capacity(3);
+    for k in 0..3 {
+        let (a, b) = (s.vertices[k], s.vertices[(k + 1) % 3]);
+        let (ha, hb) = (h[k], h[(k + 1) % 3]);
+        if ha.abs() <= tol.plane_m {
+            ends.push(a);
+        } else if (ha > tol.plane_m && hb < -tol.plane_m) || (ha < -tol.plane_m && hb > tol.plane_m)
+        {
+            ends.push(a + (b - a) * (ha / (ha - hb)));
+        }
+    }
+    let [p, q] = ends[..] else {
+        return None;
+    };
+    // Onto the plane exactly, so that cuts and barriers lie in it; one order for either edge.
+    let (p, q) = (
+        p - normal * (normal.dot(p) - offset),
+        q - normal * (normal.dot(q) - offset),
+    );
+    let (p, q) = if p.to_array() <= q.to_array() {
+        (p, q)
+    } else {
+        (q, p)
+    };
+    // Only the part inside `t` is a barrier: the rest may lie in other faces' planes (a floor
+    // crossing a post's wall crosses it along a line that runs on across the floor).
+    if !crosses_interior(p, q, t, normal, tol) {
+        return None;
+    }
+    let (t0, t1) = interior_span(p, q, t, normal, 0.0)?;
+    Some([p + (q - p) * t0, p + (q - p) * t1])
 }
 
 /// Splits the convex polygon `poly` (counter-clockwise about `normal`) by the line of every
