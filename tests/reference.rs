@@ -24,7 +24,7 @@ const TARGET_NRMS: f64 = 0.03;
 /// nrms plus a margin for platform rounding. Issue 5 stays open while this list is not empty.
 const SHORTFALLS: [(&str, f64); 2] = [
     ("kenney_building_small_c_lit", 0.07),
-    ("redeclipse_dutility_lit", 0.055),
+    ("redeclipse_dutility_lit", 0.05),
 ];
 
 fn root() -> &'static Path {

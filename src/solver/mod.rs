@@ -466,6 +466,7 @@ impl ShotContext<'_> {
             let mut g = [0.0; MAX_FUNCTIONS];
             let mut visible_weight = 0.0;
             let mut front_points = 0usize;
+            let (mut front_weight, mut front_visible) = (0.0, 0.0);
             for (l, ql) in srule.iter().enumerate() {
                 if alpha[l] <= 0.0 {
                     continue;
@@ -484,17 +485,19 @@ impl ShotContext<'_> {
                 if kxy > 0.0 {
                     front_points += 1;
                     fq += kxy;
+                    front_weight += ql.weight * alpha[l];
                     if vis {
+                        front_visible += ql.weight * alpha[l];
                         for bfn in 0..ns {
                             g[bfn] += kxy * phi_s[l][bfn];
                         }
                     }
                 }
             }
-            if alpha_weight > 0.0 {
-                // Mixed verdicts at this point: its share of the source is only as good as the
-                // source's samples.
-                let v = visible_weight / alpha_weight;
+            if front_weight > 0.0 {
+                // Mixed verdicts at this point, among the source points it exchanges light with:
+                // its share of the source is only as good as the source's samples.
+                let v = front_visible / front_weight;
                 source_side_err = source_side_err.max(unoccluded * 2.0 * v.min(1.0 - v).max(0.0));
             }
             if fq > 0.0 && front_points > 0 {
