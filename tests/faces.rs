@@ -875,15 +875,33 @@ fn floor_faces(f: &FaceSet) -> Vec<&wavrad::faces::Face> {
     f.faces.iter().filter(|x| x.material == 0).collect()
 }
 
-/// A closed 0.5 m box standing on the middle of [`floor_with`]'s floor, each side `n x n` quads.
-fn standing_box(b: &mut SceneBuilder, m: u32, n: u32) {
-    let lo = DVec3::new(-0.25, 0.0, -0.25);
-    let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * 0.5, DVec3::Z * 0.5);
+/// The four walls (facing out) of a 0.5 m square post over the middle of [`floor_with`]'s floor,
+/// from height `y0` to `y0 + height`, each `n x n` quads.
+fn post_walls(b: &mut SceneBuilder, m: u32, y0: f64, height: f64, n: u32) {
+    let lo = DVec3::new(-0.25, y0, -0.25);
+    let (x, y, z) = (DVec3::X * 0.5, DVec3::Y * height, DVec3::Z * 0.5);
     b.quad(m, lo, z, y, n); // -x
     b.quad(m, lo + x, y, z, n); // +x
     b.quad(m, lo, y, x, n); // -z
     b.quad(m, lo + z, x, y, n); // +z
-    b.quad(m, lo + y, z, x, n); // top
+}
+
+/// A closed 0.5 m box standing on the middle of [`floor_with`]'s floor, each side `n x n` quads.
+fn standing_box(b: &mut SceneBuilder, m: u32, n: u32) {
+    post_walls(b, m, 0.0, 0.5, n);
+    let (x, z) = (DVec3::X * 0.5, DVec3::Z * 0.5);
+    b.quad(m, DVec3::new(-0.25, 0.5, -0.25), z, x, n); // top
+}
+
+/// The floor faces of `f` split into exactly a 0.25 m2 square and the 3.75 m2 rest.
+fn assert_section_and_rest(f: &FaceSet, what: &str) {
+    let mut areas: Vec<f64> = floor_faces(f).iter().map(|x| x.area_m2).collect();
+    areas.sort_by(f64::total_cmp);
+    assert_eq!(areas.len(), 2, "{what}: {areas:?}");
+    assert!(
+        (areas[0] - 0.25).abs() < 1e-9 && (areas[1] - 3.75).abs() < 1e-9,
+        "{areas:?}"
+    );
 }
 
 #[test]
@@ -913,44 +931,16 @@ fn a_box_whose_walls_have_vertices_along_their_base_still_cuts_its_footprint_out
     // crosses the footprint's side at the inner joints, so the floor piece along a side spans
     // several segments. It must still not join the footprint to the floor around it.
     let f = floor_with(|b, m| standing_box(b, m, 3));
-    let floor = floor_faces(&f);
-    let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
-    areas.sort_by(f64::total_cmp);
-    assert_eq!(
-        areas.len(),
-        2,
-        "the floor around the box and its footprint: {areas:?}"
-    );
-    assert!(
-        (areas[0] - 0.25).abs() < 1e-9 && (areas[1] - 3.75).abs() < 1e-9,
-        "{areas:?}"
-    );
+    assert_section_and_rest(&f, "the floor around the box and its footprint");
 }
 
 #[test]
 fn a_post_passing_through_a_floor_cuts_its_section_out() {
     // A square post from y = -0.5 to y = 0.5 through the floor: its walls cross the floor's plane
     // (no edge lies in it), and the floor inside the post is closed off like a footprint.
-    let f = floor_with(|b, m| {
-        let lo = DVec3::new(-0.25, -0.5, -0.25);
-        let (x, y, z) = (DVec3::X * 0.5, DVec3::Y, DVec3::Z * 0.5);
-        b.quad(m, lo, z, y, 1); // -x
-        b.quad(m, lo + x, y, z, 1); // +x
-        b.quad(m, lo, y, x, 1); // -z
-        b.quad(m, lo + z, x, y, 1); // +z
-    });
+    let f = floor_with(|b, m| post_walls(b, m, -0.5, 1.0, 1));
+    assert_section_and_rest(&f, "the floor around the post and its section");
     let floor = floor_faces(&f);
-    let mut areas: Vec<f64> = floor.iter().map(|x| x.area_m2).collect();
-    areas.sort_by(f64::total_cmp);
-    assert_eq!(
-        areas.len(),
-        2,
-        "the floor around the post and its section: {areas:?}"
-    );
-    assert!(
-        (areas[0] - 0.25).abs() < 1e-9 && (areas[1] - 3.75).abs() < 1e-9,
-        "{areas:?}"
-    );
     assert!(floor.iter().any(|x| x.holes.len() == 1));
 }
 
