@@ -7,7 +7,9 @@ COPY Cargo.toml Cargo.lock ./
 COPY src ./src
 COPY api ./api
 COPY scenes ./scenes
-# Benches, tests and examples are not needed for the binary.
+# Cargo.toml declares the benches, so their sources must be present for the manifest to load
+# (only the binary is built). Tests and examples are not needed.
+COPY benches ./benches
 RUN cargo build --release --locked --bin wavrad
 
 FROM debian:bookworm-slim
