@@ -497,18 +497,12 @@ fn crossing(
     let [p, q] = ends[..] else {
         return None;
     };
-    // Onto the plane exactly, so that cuts and barriers lie in it; one order for either edge.
+    // Onto the plane exactly, so that cuts and barriers lie in it. (The segment depends on `s`
+    // and `t` only, not on which crossing edge of `s` found `t`: both finds give the same one.)
     let (p, q) = (
         p - normal * (normal.dot(p) - offset),
         q - normal * (normal.dot(q) - offset),
     );
-    let (p, q) = if p.to_array() <= q.to_array() {
-        (p, q)
-    } else {
-        (q, p)
-    };
-    // Only the part inside `t` is a barrier: the rest may lie in other faces' planes (a floor
-    // crossing a post's wall crosses it along a line that runs on across the floor).
     if !crosses_interior(p, q, t, normal, tol) {
         return None;
     }

@@ -14,8 +14,8 @@ use super::cover;
 use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
 use super::{
-    corner_probe_points, gather, mean_rgb_sum, visibility_point, weighted_deviation, Bases, Patch,
-    Quantity, Rules, MAX_DEPTH,
+    corner_probe_points, gather, mean_rgb_sum, receiving_point, visibility_point,
+    weighted_deviation, Bases, Patch, Quantity, Rules, MAX_DEPTH,
 };
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
@@ -130,11 +130,7 @@ impl LightShot<'_> {
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
             rbasis.eval(q.st, &mut psi[k]);
-            // Off an extended face, the stand-in receives for the point (see `transfer`).
-            let x = match &rcover {
-                Some(c) => rroot.frame.point(c.visibility_point[k]),
-                None => rp.point(q.st),
-            };
+            let x = receiving_point(rroot, &rp, rcover.as_ref(), k, q.st);
             let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
             if mean_rgb_sum(e) <= 0.0 {
                 continue;
@@ -161,11 +157,7 @@ impl LightShot<'_> {
             // Near the element's corners, which the interior quadrature points do not sample.
             let mut phi = [0.0; MAX_FUNCTIONS];
             for &st in corner_probe_points(rroot.shape) {
-                let x = if rcover.is_some() {
-                    visibility_point(rroot, &rnode.map, st)
-                } else {
-                    rp.point(st)
-                };
+                let x = visibility_point(rroot, &rnode.map, st);
                 let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
                 rbasis.eval(st, &mut phi);
                 err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));

@@ -196,6 +196,25 @@ fn visibility_point(root: &ElementRoot, map: &ChildMap, st: DVec2) -> DVec3 {
     }
 }
 
+/// Where quadrature point `k` (at `st`) of receiver element `patch` of `root` receives light: the
+/// point itself, or, off an extended face, its stand-in (`cover.visibility_point`, the closest
+/// point on the face), in visibility and kernel alike. The extension is then continuous across the
+/// face's border: with the kernel at the point itself, a wall standing on the border inside the
+/// domain is seen from behind on one side of it and from the front on the other, and elements
+/// straddling the border average the two.
+fn receiving_point(
+    root: &ElementRoot,
+    patch: &Patch,
+    cover: Option<&NodeCover>,
+    k: usize,
+    st: DVec2,
+) -> DVec3 {
+    match cover {
+        Some(c) => root.frame.point(c.visibility_point[k]),
+        None => patch.point(st),
+    }
+}
+
 /// What a source element emits from: its own shape, or the face inside it; on its front side only.
 struct Emitter {
     shape: EmitterShape,
@@ -444,15 +463,7 @@ impl ShotContext<'_> {
         // Unoccluded irradiance at the receiver points, sum over channels weighted as the oracle's.
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
-            // A point of an extended domain off its face receives as its stand-in (its closest
-            // point on the face) in visibility and kernel alike: the extension is then continuous
-            // across the face's border. With the kernel at the point itself, a wall standing on
-            // the border inside the domain is seen from behind on one side of it and from the
-            // front on the other, and elements straddling the border average the two.
-            let x = match &rcover {
-                Some(c) => rroot.frame.point(c.visibility_point[k]),
-                None => rp.point(q.st),
-            };
+            let x = receiving_point(rroot, &rp, rcover.as_ref(), k, q.st);
             rbasis.eval(q.st, &mut psi[k]);
             let f_exact = emitter.form_factor(x, rroot.normal);
             if f_exact <= 0.0 {
@@ -547,12 +558,8 @@ impl ShotContext<'_> {
             // irradiance of the source's mean at points near the corners with the projection.
             let mut phi = [0.0; MAX_FUNCTIONS];
             for &st in corner_probe_points(rroot.shape) {
-                // Off the face, the stand-in receives for the point (as in the transfer above).
-                let x = if rcover.is_some() {
-                    visibility_point(rroot, &rnode.map, st)
-                } else {
-                    rp.point(st)
-                };
+                // Off the face, the stand-in receives for the point (see `receiving_point`).
+                let x = visibility_point(rroot, &rnode.map, st);
                 let f = emitter.form_factor(x, rroot.normal);
                 rbasis.eval(st, &mut phi);
                 let e = src.coeffs[0].map(|c| f * c);
