@@ -298,6 +298,7 @@ fn cli_solve_writes_the_contract_outputs() {
     for counter in [
         "refinement_capped",
         "touching_fallbacks",
+        "node_sum_splits",
         "extended_faces",
         "extended_faces_on_domain",
         "extended_faces_tessellated",

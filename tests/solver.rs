@@ -442,3 +442,137 @@ fn an_eave_receives_the_light_of_the_walls_it_overhangs_in_both_modes() {
         );
     }
 }
+
+/// A 3 x 3 m sky panel (L_e = 1, facing down) 19 cm over a black wall whose top meets a black
+/// eave 5 cm deep: the eave's shadow on the wall's top is sharp, the sky large and grazing.
+const SKY_Y: f64 = 1.84;
+const EAVE_Y: f64 = 1.65;
+
+fn eave_scene() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let sky = b.material([0.0; 3], [1.0; 3], false);
+    let black = b.material([0.0; 3], [0.0; 3], false);
+    b.quad(
+        sky,
+        DVec3::new(-1.5, SKY_Y, -1.5),
+        DVec3::X * 3.0,
+        DVec3::Z * 3.0,
+        1,
+    );
+    // The wall, z = -0.4, facing -z; the eave over it, facing down, 5 cm past the wall.
+    b.quad(
+        black,
+        DVec3::new(-0.4, 0.0, -0.4),
+        DVec3::Y * EAVE_Y,
+        DVec3::X * 0.8,
+        1,
+    );
+    b.quad(
+        black,
+        DVec3::new(-0.45, EAVE_Y, -0.45),
+        DVec3::X * 0.9,
+        DVec3::Z * 0.9,
+        1,
+    );
+    b.to_glb()
+}
+
+/// The sky's visible form factor at wall point `x` (normal -z), by brute force: the sky sampled
+/// on a fine grid, each sample's ray tested against the eave's rectangle analytically.
+fn visible_sky_form_factor(x: DVec3) -> f64 {
+    let n = 600;
+    let cell = 9.0 / (n * n) as f64;
+    let mut f = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let q = DVec3::new(
+                -1.5 + 3.0 * (i as f64 + 0.5) / n as f64,
+                SKY_Y,
+                -1.5 + 3.0 * (j as f64 + 0.5) / n as f64,
+            );
+            let d = q - x;
+            let r2 = d.length_squared();
+            let (cos_x, cos_q) = (-d.z / r2.sqrt(), d.y / r2.sqrt());
+            if cos_x <= 0.0 || cos_q <= 0.0 {
+                continue;
+            }
+            // Where the ray crosses the eave's plane: inside its rectangle, it is blocked.
+            let c = x + d * ((EAVE_Y - x.y) / d.y);
+            if c.x.abs() <= 0.45 && c.z.abs() <= 0.45 {
+                continue;
+            }
+            f += cos_x * cos_q / (std::f64::consts::PI * r2) * cell;
+        }
+    }
+    f
+}
+
+/// RMS and worst error of the solved `H / pi` (the visible form factor, L_e = 1) against
+/// `exact` at the wall points `points`.
+fn eave_shadow_errors(
+    glb: &[u8],
+    order: usize,
+    node_sums: bool,
+    points: &[DVec3],
+    exact: &[f64],
+) -> (f64, f64) {
+    let scene = load_scene(glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
+    let params = SolverParams {
+        order,
+        node_sums,
+        quantity: wavrad::solver::Quantity::Irradiance,
+        ..Default::default()
+    };
+    let (prepared, sol) = bake(
+        &scene,
+        DomainMode::Extended,
+        params,
+        &AtomicBool::new(false),
+        &mut |_| {},
+    )
+    .expect("bakes");
+    let probes: Vec<ProbePoint> = points
+        .iter()
+        .map(|p| ProbePoint {
+            p: p.to_array(),
+            n: [0.0, 0.0, -1.0],
+        })
+        .collect();
+    let errors: Vec<f64> = evaluate_probes(&sol, &probes, prepared.diagonal)
+        .iter()
+        .zip(exact)
+        .map(|(v, e)| v.l.expect("on the wall")[0] - e)
+        .collect();
+    let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+    (rms, errors.iter().fold(0.0, |m, e| m.max(e.abs())))
+}
+
+#[test]
+fn an_eaves_shadow_on_a_wall_is_resolved_under_a_large_sky() {
+    // The sky is split for its visibility into many links, each too small to refine the wall,
+    // while together they draw the shadow's edge across one element: judging each node on the
+    // sum of its links resolves it. The points run down the top 15 cm of the wall, where the
+    // sky's visible form factor falls from 0.31 to 0 (at 9 mm under the eave).
+    let glb = eave_scene();
+    let points: Vec<DVec3> = (0..16)
+        .flat_map(|i| {
+            let y = EAVE_Y - 0.004 - 0.146 * (i as f64 / 15.0).powi(2);
+            [DVec3::new(0.1, y, -0.4), DVec3::new(-0.27, y, -0.4)]
+        })
+        .collect();
+    let exact: Vec<f64> = points.iter().map(|&p| visible_sky_form_factor(p)).collect();
+    for order in [1, 2, 3] {
+        let (rms_on, worst_on) = eave_shadow_errors(&glb, order, true, &points, &exact);
+        let (rms_off, worst_off) = eave_shadow_errors(&glb, order, false, &points, &exact);
+        println!(
+            "eave shadow M{order}: rms {rms_on:.4} worst {worst_on:.4} with node sums; \
+             rms {rms_off:.4} worst {worst_off:.4} without"
+        );
+        if order > 1 {
+            // M1's constants are judged coarser still; its figure is printed, not held.
+            // Measured: M2 0.0081 against 0.0364, M3 0.0055 against 0.0094.
+            assert!(rms_on <= 0.7 * rms_off, "M{order}: {rms_on} vs {rms_off}");
+            assert!(rms_on <= 0.012, "M{order}: rms {rms_on}");
+        }
+    }
+}

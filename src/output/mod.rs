@@ -481,6 +481,7 @@ pub fn write_outputs(
             "stop_reason": stats.stop_reason.map(|s| s.as_str()).unwrap_or("converged"),
             "rays": stats.rays, "refinement_capped": stats.refinement_capped,
             "touching_fallbacks": stats.touching_fallbacks,
+            "node_sum_splits": stats.node_sum_splits,
             "extended_faces": extended_faces, "extended_faces_on_domain": masked_faces.len(),
             "extended_faces_tessellated": extended_tessellated,
             "texels_per_meter": atlas.texels_per_meter,

@@ -17,6 +17,7 @@ pub mod hierarchy;
 pub mod kernel;
 pub mod lights;
 pub mod quadrature;
+mod shot_record;
 pub mod visibility;
 
 use crate::domain::{ElementRoot, ElementStatus, Shape};
@@ -27,6 +28,7 @@ use glam::{DVec2, DVec3};
 use hierarchy::Hierarchy;
 use quadrature::{rule, zones_of_influence, QuadPoint};
 use rayon::prelude::*;
+use shot_record::ShotRecord;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
@@ -64,6 +66,10 @@ pub struct SolverParams {
     pub quantity: Quantity,
     pub indirect_only: bool,
     pub max_iterations: u64,
+    /// After each direct shot, judge every receiver node on the sum of the links it gathered and
+    /// refine where that sum is not represented within the tolerance (`refine_by_node_sums`).
+    /// On by default; off gives the per-link oracle alone (`tests/solver.rs` compares both).
+    pub node_sums: bool,
 }
 
 impl Default for SolverParams {
@@ -76,6 +82,7 @@ impl Default for SolverParams {
             quantity: Quantity::Radiance,
             indirect_only: false,
             max_iterations: DEFAULT_MAX_ITERATIONS,
+            node_sums: true,
         }
     }
 }
@@ -126,6 +133,9 @@ pub struct SolveStats {
     /// Receiver points where no source quadrature point lay in front of the receiver (touching
     /// elements): the exact form factor times the visible fraction stood in for the quadrature.
     pub touching_fallbacks: u64,
+    /// Receiver nodes split after a direct shot because the sum of their links was not
+    /// represented within the tolerance (`SolverParams::node_sums`).
+    pub node_sum_splits: u64,
 }
 
 /// The solved scene: roots, their hierarchies, and what it took.
@@ -182,6 +192,41 @@ impl Rules {
         match shape {
             Shape::Triangle => &self.triangle,
             Shape::Parallelogram => &self.cover.rule,
+        }
+    }
+}
+
+/// Each shape's basis functions at its rule's points (the receiver's control points), then at its
+/// corner probe points.
+struct BasisAtControlPoints {
+    triangle: Vec<[f64; MAX_FUNCTIONS]>,
+    parallelogram: Vec<[f64; MAX_FUNCTIONS]>,
+}
+
+impl BasisAtControlPoints {
+    fn new(bases: &Bases, rules: &Rules) -> Self {
+        let at = |shape: Shape| {
+            rules
+                .of(shape)
+                .iter()
+                .map(|q| q.st)
+                .chain(corner_probe_points(shape).iter().copied())
+                .map(|st| {
+                    let mut phi = [0.0; MAX_FUNCTIONS];
+                    bases.of(shape).eval(st, &mut phi);
+                    phi
+                })
+                .collect()
+        };
+        BasisAtControlPoints {
+            triangle: at(Shape::Triangle),
+            parallelogram: at(Shape::Parallelogram),
+        }
+    }
+    fn of(&self, shape: Shape) -> &[[f64; MAX_FUNCTIONS]] {
+        match shape {
+            Shape::Triangle => &self.triangle,
+            Shape::Parallelogram => &self.parallelogram,
         }
     }
 }
@@ -342,6 +387,10 @@ struct ShotContext<'a> {
     roots: &'a [ElementRoot],
     bases: &'a Bases,
     rules: &'a Rules,
+    psi: &'a BasisAtControlPoints,
+    /// Record every gathered link, with its light at the receiver's check points, and judge each
+    /// receiver node on the sum of its links after the shot (`refine_by_node_sums`).
+    node_sums: bool,
     visibility: &'a Visibility,
     source_root: usize,
     source_hierarchy: &'a Hierarchy,
@@ -354,6 +403,7 @@ struct ShotContext<'a> {
     links: &'a AtomicU64,
     capped: &'a AtomicU64,
     touching: &'a AtomicU64,
+    node_sum_splits: &'a AtomicU64,
     cancel: &'a AtomicBool,
 }
 
@@ -395,7 +445,14 @@ impl ShotContext<'_> {
     }
 
     /// Transfers the source's unshot radiosity to receiver node `b` of `rcv`, refining as needed.
-    fn transfer(&self, src: &Source, rcv_index: usize, rcv: &mut Hierarchy, b: usize) {
+    fn transfer(
+        &self,
+        src: &Source,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+        b: usize,
+        record: &mut ShotRecord<Source>,
+    ) {
         if self.cancel.load(Ordering::Relaxed) {
             return;
         }
@@ -436,10 +493,7 @@ impl ShotContext<'_> {
             alpha_weight += alpha[l] * q.weight;
         }
         let ignore = [sroot.face.0, rroot.face.0];
-        let oracle_weight: Rgb = match self.quantity {
-            Quantity::Radiance => rroot.rho,
-            Quantity::Irradiance => [1.0; 3],
-        };
+        let oracle_weight = self.oracle_weight(rroot);
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
         // move (the constant part is exact: it uses the exact form factor).
         let source_variation: f64 = (1..ns)
@@ -462,18 +516,34 @@ impl ShotContext<'_> {
         let mut source_side_err: f64 = 0.0;
         // Unoccluded irradiance at the receiver points, sum over channels weighted as the oracle's.
         let mut unoccluded_max: f64 = 0.0;
-        for (k, q) in rrule.iter().enumerate() {
-            let x = receiving_point(rroot, &rp, rcover.as_ref(), k, q.st);
-            rbasis.eval(q.st, &mut psi[k]);
+        // The rule's points, then check points near the corners: these take no part in the
+        // projection or in this link's oracle, only in the node's check after the shot.
+        let nk = rrule.len();
+        let check_points: &[DVec2] = if self.node_sums {
+            corner_probe_points(rroot.shape)
+        } else {
+            &[]
+        };
+        for k in 0..nk + check_points.len() {
+            let x = match rrule.get(k) {
+                Some(q) => {
+                    rbasis.eval(q.st, &mut psi[k]);
+                    receiving_point(rroot, &rp, rcover.as_ref(), k, q.st)
+                }
+                None => visibility_point(rroot, &rnode.map, check_points[k - nk]),
+            };
             let f_exact = emitter.form_factor(x, rroot.normal);
             if f_exact <= 0.0 {
                 continue;
             }
+            let rule_point = k < nk;
             let unoccluded = f_exact
                 * (0..3)
                     .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
                     .sum::<f64>();
-            unoccluded_max = unoccluded_max.max(unoccluded);
+            if rule_point {
+                unoccluded_max = unoccluded_max.max(unoccluded);
+            }
             let mut fq = 0.0;
             let mut g = [0.0; MAX_FUNCTIONS];
             let mut visible_weight = 0.0;
@@ -489,10 +559,10 @@ impl ShotContext<'_> {
                     * alpha[l];
                 let vis = self.visibility.visible(x, ys_vis[l], ignore);
                 if vis {
-                    any_visible = true;
+                    any_visible |= rule_point;
                     visible_weight += ql.weight * alpha[l];
                 } else {
-                    any_blocked = true;
+                    any_blocked |= rule_point;
                 }
                 if kxy > 0.0 {
                     front_points += 1;
@@ -506,14 +576,14 @@ impl ShotContext<'_> {
                     }
                 }
             }
-            if front_weight > 0.0 {
+            if front_weight > 0.0 && rule_point {
                 // Mixed verdicts at this point, among the source points it exchanges light with:
                 // its share of the source is only as good as the source's samples.
                 let v = front_visible / front_weight;
                 source_side_err = source_side_err.max(unoccluded * 2.0 * v.min(1.0 - v).max(0.0));
             }
             if fq > 0.0 && front_points > 0 {
-                if source_partial {
+                if source_partial && rule_point {
                     coverage_err = coverage_err.max((f_exact - fq).abs() * source_variation);
                 }
                 let scale = f_exact / fq;
@@ -524,7 +594,9 @@ impl ShotContext<'_> {
                 // Every source point is on or behind the receiver's plane (touching elements):
                 // the exact form factor with the visible fraction of the source, constant part only.
                 g = [0.0; MAX_FUNCTIONS];
-                self.touching.fetch_add(1, Ordering::Relaxed);
+                if rule_point {
+                    self.touching.fetch_add(1, Ordering::Relaxed);
+                }
                 if alpha_weight > 0.0 {
                     g[0] = f_exact * visible_weight / alpha_weight;
                 }
@@ -536,16 +608,18 @@ impl ShotContext<'_> {
                 }
             }
             e_k[k] = e;
-            for a in 0..nr {
-                for ch in 0..3 {
-                    dh[a][ch] += q.weight * psi[k][a] * e[ch];
+            if let Some(q) = rrule.get(k) {
+                for a in 0..nr {
+                    for ch in 0..3 {
+                        dh[a][ch] += q.weight * psi[k][a] * e[ch];
+                    }
                 }
             }
         }
 
         // Oracle: received irradiance at the control points against its projection.
         let weight = oracle_weight;
-        let mut err = (0..rrule.len())
+        let mut err = (0..nk)
             .map(|k| weighted_deviation(e_k[k], &dh, &psi[k], nr, weight))
             .fold(0.0, f64::max);
         // A shadow boundary crossing the link: the control points cannot see where it runs, so the
@@ -603,7 +677,7 @@ impl ShotContext<'_> {
                     || (sp.area > rp.area && !receiver_first && (partial || source_detail)));
             if split_source {
                 for child in self.source_children(src) {
-                    self.transfer(&child, rcv_index, rcv, b);
+                    self.transfer(&child, rcv_index, rcv, b, record);
                 }
                 return;
             }
@@ -616,7 +690,7 @@ impl ShotContext<'_> {
                     rnode.first_child as usize
                 };
                 for c in 0..4 {
-                    self.transfer(src, rcv_index, rcv, first + c);
+                    self.transfer(src, rcv_index, rcv, first + c, record);
                 }
                 return;
             }
@@ -624,6 +698,81 @@ impl ShotContext<'_> {
         }
         self.links.fetch_add(1, Ordering::Relaxed);
         gather(rcv, b, &dh[..nr]);
+        if self.node_sums {
+            record.add(b, &e_k[..nk + check_points.len()], &dh, src.clone());
+        }
+    }
+
+    /// After a shot's links to one receiver are gathered, judges each node on the sum of the
+    /// links it gathered. A large source split for its visibility sends many links, each of
+    /// which passes the oracle while their sum, a shadow's edge across the node, is not
+    /// represented within the budget (an eave's shadow on the top of a wall). Such a node gives
+    /// back the links that carry the error and they go to its children; repeated down the
+    /// hierarchy until every node that received light passes or cannot be split.
+    fn refine_by_node_sums(
+        &self,
+        mut record: ShotRecord<Source>,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+    ) {
+        let rroot = &self.roots[rcv_index];
+        let rbasis = self.bases.of(rroot.shape);
+        let nr = rbasis.len();
+        let weight = self.oracle_weight(rroot);
+        let psi = self.psi.of(rroot.shape);
+        let deviation = |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| {
+            psi.iter()
+                .zip(e)
+                .map(|(phi, e)| weighted_deviation(*e, dh, phi, nr, weight))
+                .fold(0.0, f64::max)
+        };
+        while !record.nodes.is_empty() && !self.cancel.load(Ordering::Relaxed) {
+            let mut next = ShotRecord::default();
+            for (b, sum) in std::mem::take(&mut record.nodes) {
+                // One link: its own oracle judged it.
+                if sum.links.len() < 2 {
+                    continue;
+                }
+                let rnode = rcv.nodes[b];
+                let rp = Patch::new(rroot, &rnode.map);
+                if rnode.depth >= MAX_DEPTH || rp.min_edge() * 0.5 < self.min_edge {
+                    continue;
+                }
+                let Some(resend) = sum.links_to_resend(self.threshold / rp.area, deviation) else {
+                    continue;
+                };
+                self.node_sum_splits.fetch_add(1, Ordering::Relaxed);
+                for l in &resend {
+                    for a in 0..nr {
+                        for ch in 0..3 {
+                            rcv.dh[b * nr + a][ch] -= l.dh[a][ch];
+                        }
+                    }
+                }
+                let first = if rnode.is_leaf() {
+                    let first = rcv.split(b, rbasis, rroot.shape);
+                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
+                    first
+                } else {
+                    rnode.first_child as usize
+                };
+                for c in 0..4 {
+                    for l in &resend {
+                        self.transfer(&l.source, rcv_index, rcv, first + c, &mut next);
+                    }
+                }
+            }
+            record = next;
+        }
+    }
+
+    /// What the oracle weighs each channel's irradiance error by: rho for radiance, 1 for
+    /// irradiance.
+    fn oracle_weight(&self, rroot: &ElementRoot) -> Rgb {
+        match self.quantity {
+            Quantity::Radiance => rroot.rho,
+            Quantity::Irradiance => [1.0; 3],
+        }
     }
 }
 
@@ -740,6 +889,7 @@ pub fn solve(
     let start = Instant::now();
     let bases = Bases::new(params.order);
     let rules = Rules::new(params.order);
+    let psi = BasisAtControlPoints::new(&bases, &rules);
     let mut hierarchies: Vec<Hierarchy> = roots
         .iter()
         .map(|r| {
@@ -759,6 +909,7 @@ pub fn solve(
     let links = AtomicU64::new(0);
     let capped = AtomicU64::new(0);
     let touching = AtomicU64::new(0);
+    let node_sum_splits = AtomicU64::new(0);
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
@@ -908,6 +1059,10 @@ pub fn solve(
                 roots: &roots,
                 bases: &bases,
                 rules: &rules,
+                psi: &psi,
+                // Direct shots only: a large emitter's shadows are where split links add up;
+                // judging every shot doubles the time again for little (README).
+                node_sums: direct && params.node_sums,
                 visibility,
                 source_root: shooter,
                 source_hierarchy: &source_h,
@@ -918,6 +1073,7 @@ pub fn solve(
                 links: &links,
                 capped: &capped,
                 touching: &touching,
+                node_sum_splits: &node_sum_splits,
                 cancel,
             };
             hierarchies
@@ -931,7 +1087,11 @@ pub fn solve(
                     {
                         return;
                     }
-                    ctx.transfer(&source, ri, h, 0);
+                    let mut record = ShotRecord::default();
+                    ctx.transfer(&source, ri, h, 0, &mut record);
+                    if ctx.node_sums {
+                        ctx.refine_by_node_sums(record, ri, h);
+                    }
                     if h.touched {
                         h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, direct);
                         *power = unshot_power(h, &roots[ri]);
@@ -971,6 +1131,7 @@ pub fn solve(
         stop_reason: Some(stop),
         refinement_capped: capped.load(Ordering::Relaxed),
         touching_fallbacks: touching.load(Ordering::Relaxed),
+        node_sum_splits: node_sum_splits.load(Ordering::Relaxed),
     };
     Solution {
         roots,
