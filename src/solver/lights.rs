@@ -14,7 +14,7 @@ use super::cover;
 use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
 use super::{
-    corner_probe_points, gather, mean_rgb_sum, receiving_point, visibility_point,
+    corner_probe_points, first_child, gather, mean_rgb_sum, receiving_point, visibility_point,
     weighted_deviation, Bases, Patch, Quantity, Rules, MAX_DEPTH,
 };
 use crate::domain::ElementRoot;
@@ -172,13 +172,7 @@ impl LightShot<'_> {
         }
         if err * rp.area > self.threshold {
             if rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge {
-                let first = if rnode.is_leaf() {
-                    let first = rcv.split(b, rbasis, rroot.shape);
-                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
-                    first
-                } else {
-                    rnode.first_child as usize
-                };
+                let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
                 for c in 0..4 {
                     self.transfer(rcv_index, rcv, first + c);
                 }

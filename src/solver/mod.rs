@@ -682,13 +682,7 @@ impl ShotContext<'_> {
                 return;
             }
             if can_split_r {
-                let first = if rnode.is_leaf() {
-                    let first = rcv.split(b, rbasis, rroot.shape);
-                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
-                    first
-                } else {
-                    rnode.first_child as usize
-                };
+                let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
                 for c in 0..4 {
                     self.transfer(src, rcv_index, rcv, first + c, record);
                 }
@@ -749,13 +743,7 @@ impl ShotContext<'_> {
                         }
                     }
                 }
-                let first = if rnode.is_leaf() {
-                    let first = rcv.split(b, rbasis, rroot.shape);
-                    cover::extend(rcv, rroot, &self.rules.cover, rbasis);
-                    first
-                } else {
-                    rnode.first_child as usize
-                };
+                let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
                 for c in 0..4 {
                     for l in &resend {
                         self.transfer(&l.source, rcv_index, rcv, first + c, &mut next);
@@ -791,6 +779,24 @@ fn weighted_deviation(
             weight[ch] * (e[ch] - proj).abs()
         })
         .sum()
+}
+
+/// The first of node `b`'s four children, splitting `b` first if it is a leaf (an extended
+/// root's new children get their covers).
+fn first_child(
+    rcv: &mut Hierarchy,
+    b: usize,
+    root: &ElementRoot,
+    cover_rules: &CoverRules,
+    basis: &Basis,
+) -> usize {
+    if rcv.nodes[b].is_leaf() {
+        let first = rcv.split(b, basis, root.shape);
+        cover::extend(rcv, root, cover_rules, basis);
+        first
+    } else {
+        rcv.nodes[b].first_child as usize
+    }
 }
 
 /// Adds an accepted link's coefficients to node `b`'s gathered irradiance.
