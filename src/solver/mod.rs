@@ -45,9 +45,9 @@ pub enum Quantity {
 
 /// Default refinement tolerance: a transfer is refined while its estimated error exceeds this
 /// fraction of the scene's emitted power. Chosen against the Monte Carlo references
-/// (`tests/reference.rs`, README): at M2, 2e-6 takes the Red Eclipse level from 7.1 % (1e-5) to
-/// 4.8 % for a third more time, the Kenney building from 9.4 % to 6.5 %; 1e-6 gains little more
-/// on the level (4.6 %) for twice the time.
+/// (`tests/reference.rs`, README): at M2, with the node-sum check, 2e-6 takes the Red Eclipse
+/// level from 5.8 % (1e-5) to 4.0 % and the Kenney building from 6.1 % to 3.8 %, at 2.5-3x the
+/// time; 1e-6 gains little more on the building (3.6 %) for twice the time again.
 pub const DEFAULT_TOLERANCE: f64 = 2e-6;
 /// Deepest subdivision of an element (4^depth sub-elements at most).
 pub const MAX_DEPTH: u8 = 9;
@@ -133,8 +133,8 @@ pub struct SolveStats {
     /// Receiver points where no source quadrature point lay in front of the receiver (touching
     /// elements): the exact form factor times the visible fraction stood in for the quadrature.
     pub touching_fallbacks: u64,
-    /// Receiver nodes split after a direct shot because the sum of their links was not
-    /// represented within the tolerance (`SolverParams::node_sums`).
+    /// Receiver nodes that gave links back to their children after a direct shot, because the
+    /// sum of their links was not represented within the tolerance (`SolverParams::node_sums`).
     pub node_sum_splits: u64,
 }
 
@@ -701,8 +701,10 @@ impl ShotContext<'_> {
     /// links it gathered. A large source split for its visibility sends many links, each of
     /// which passes the oracle while their sum, a shadow's edge across the node, is not
     /// represented within the budget (an eave's shadow on the top of a wall). Such a node gives
-    /// back the links that carry the error and they go to its children; repeated down the
-    /// hierarchy until every node that received light passes or cannot be split.
+    /// back the links that carry the error and they go to its children; down the hierarchy until
+    /// every node that received light passes or cannot be split. Nodes are taken in index order:
+    /// links only ever go to a node's descendants, whose indices are larger, so a node's record
+    /// is complete when it is judged, and the order (so the result) is deterministic.
     fn refine_by_node_sums(
         &self,
         mut record: ShotRecord<Source>,
@@ -720,37 +722,39 @@ impl ShotContext<'_> {
                 .map(|(phi, e)| weighted_deviation(*e, dh, phi, nr, weight))
                 .fold(0.0, f64::max)
         };
-        while !record.nodes.is_empty() && !self.cancel.load(Ordering::Relaxed) {
-            let mut next = ShotRecord::default();
-            for (b, sum) in std::mem::take(&mut record.nodes) {
-                // One link: its own oracle judged it.
-                if sum.links.len() < 2 {
-                    continue;
-                }
-                let rnode = rcv.nodes[b];
-                let rp = Patch::new(rroot, &rnode.map);
-                if rnode.depth >= MAX_DEPTH || rp.min_edge() * 0.5 < self.min_edge {
-                    continue;
-                }
-                let Some(resend) = sum.links_to_resend(self.threshold / rp.area, deviation) else {
-                    continue;
-                };
-                self.node_sum_splits.fetch_add(1, Ordering::Relaxed);
-                for l in &resend {
-                    for a in 0..nr {
-                        for ch in 0..3 {
-                            rcv.dh[b * nr + a][ch] -= l.dh[a][ch];
-                        }
-                    }
-                }
-                let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
-                for c in 0..4 {
-                    for l in &resend {
-                        self.transfer(&l.source, rcv_index, rcv, first + c, &mut next);
+        while let Some((b, sum)) = record.nodes.pop_first() {
+            if self.cancel.load(Ordering::Relaxed) {
+                return;
+            }
+            // One link: its own oracle judged it.
+            if sum.links.len() < 2 {
+                continue;
+            }
+            let rnode = rcv.nodes[b];
+            let rp = Patch::new(rroot, &rnode.map);
+            if rnode.depth >= MAX_DEPTH || rp.min_edge() * 0.5 < self.min_edge {
+                continue;
+            }
+            let Some(resend) = sum.links_to_resend(self.threshold / rp.area, deviation) else {
+                continue;
+            };
+            self.node_sum_splits.fetch_add(1, Ordering::Relaxed);
+            // Taken back: no longer links of this node (each is counted again where it lands).
+            self.links.fetch_sub(resend.len() as u64, Ordering::Relaxed);
+            for l in &resend {
+                for a in 0..nr {
+                    for ch in 0..3 {
+                        rcv.dh[b * nr + a][ch] -= l.dh[a][ch];
                     }
                 }
             }
-            record = next;
+            let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
+            debug_assert!(first > b, "children come after their parent");
+            for c in 0..4 {
+                for l in &resend {
+                    self.transfer(&l.source, rcv_index, rcv, first + c, &mut record);
+                }
+            }
         }
     }
 

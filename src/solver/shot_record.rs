@@ -8,17 +8,18 @@
 
 use super::basis::MAX_FUNCTIONS;
 use crate::scene::Rgb;
-use std::collections::HashMap;
+use std::collections::BTreeMap;
 
 /// The links one receiver gathered during a shot, per node.
 pub(super) struct ShotRecord<S> {
-    pub nodes: HashMap<usize, NodeSum<S>>,
+    /// In node order: the check takes nodes parents first (see `refine_by_node_sums`).
+    pub nodes: BTreeMap<usize, NodeSum<S>>,
 }
 
 impl<S> Default for ShotRecord<S> {
     fn default() -> Self {
         ShotRecord {
-            nodes: HashMap::new(),
+            nodes: BTreeMap::new(),
         }
     }
 }
@@ -81,12 +82,13 @@ impl<S> NodeSum<S> {
             return None;
         }
         let share = allowed / self.links.len() as f64;
-        Some(
-            self.links
-                .into_iter()
-                .filter(|l| deviation(&l.e, &l.dh) > share)
-                .collect(),
-        )
+        let resend: Vec<RecordedLink<S>> = self
+            .links
+            .into_iter()
+            .filter(|l| deviation(&l.e, &l.dh) > share)
+            .collect();
+        // Empty only by rounding (the sum's deviation is at most the links' sum): nothing to do.
+        (!resend.is_empty()).then_some(resend)
     }
 }
 
