@@ -14,8 +14,9 @@ use super::cover;
 use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
 use super::{
-    corner_probe_points, first_child, gather, mean_rgb_sum, receiving_point, visibility_point,
-    weighted_deviation, Bases, Patch, Quantity, Rules, MAX_DEPTH,
+    corner_probe_points, first_child, gather, max_deviation, mean_rgb_sum, oracle_weight,
+    receiving_point, visibility_point, weighted_deviation, Bases, BasisAtControlPoints, Patch,
+    Quantity, Rules, MAX_DEPTH,
 };
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
@@ -91,6 +92,8 @@ pub(super) struct LightShot<'a> {
     pub roots: &'a [ElementRoot],
     pub bases: &'a Bases,
     pub rules: &'a Rules,
+    /// The receiver basis at the rule's points, then at the corner probe points.
+    pub psi: &'a BasisAtControlPoints,
     pub visibility: &'a Visibility,
     pub light: &'a PunctualLight,
     /// Absolute error threshold, in W (sum over channels).
@@ -118,18 +121,14 @@ impl LightShot<'_> {
         // Extended receivers: points off the face see the light from their closest face point.
         let rcover = cover::of_node(rcv, rroot, b);
         let ignore = [rroot.face.0; 2];
-        let weight: Rgb = match self.quantity {
-            Quantity::Radiance => rroot.rho,
-            Quantity::Irradiance => [1.0; 3],
-        };
+        let weight = oracle_weight(self.quantity, rroot);
+        let psi = self.psi.of(rroot.shape);
         let weighted = |e: Rgb| (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
         let mut e_k = [[0.0f64; 3]; 64];
-        let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
         let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
         let (mut any_visible, mut any_blocked) = (false, false);
         let mut unoccluded_max: f64 = 0.0;
         for (k, q) in rrule.iter().enumerate() {
-            rbasis.eval(q.st, &mut psi[k]);
             let x = receiving_point(rroot, &rp, rcover.as_ref(), k, q.st);
             let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
             if mean_rgb_sum(e) <= 0.0 {
@@ -149,18 +148,15 @@ impl LightShot<'_> {
             }
         }
         // Oracle: as for element transfers (see `ShotContext::transfer`).
-        let mut err = (0..rrule.len())
-            .map(|k| weighted_deviation(e_k[k], &dh, &psi[k], nr, weight))
-            .fold(0.0, f64::max);
+        let nk = rrule.len();
+        let mut err = max_deviation(&psi[..nk], &e_k[..nk], &dh, nr, weight);
         let mut partial = any_visible && any_blocked;
         if !partial && any_visible && err * rp.area <= self.threshold {
             // Near the element's corners, which the interior quadrature points do not sample.
-            let mut phi = [0.0; MAX_FUNCTIONS];
-            for &st in corner_probe_points(rroot.shape) {
+            for (j, &st) in corner_probe_points(rroot.shape).iter().enumerate() {
                 let x = visibility_point(rroot, &rnode.map, st);
                 let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
-                rbasis.eval(st, &mut phi);
-                err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
+                err = err.max(weighted_deviation(e, &dh, &psi[nk + j], nr, weight));
             }
         }
         if !partial && err * rp.area <= self.threshold && unoccluded_max * rp.area > self.threshold

@@ -198,7 +198,7 @@ impl Rules {
 
 /// Each shape's basis functions at its rule's points (the receiver's control points), then at its
 /// corner probe points.
-struct BasisAtControlPoints {
+pub(super) struct BasisAtControlPoints {
     triangle: Vec<[f64; MAX_FUNCTIONS]>,
     parallelogram: Vec<[f64; MAX_FUNCTIONS]>,
 }
@@ -493,7 +493,7 @@ impl ShotContext<'_> {
             alpha_weight += alpha[l] * q.weight;
         }
         let ignore = [sroot.face.0, rroot.face.0];
-        let oracle_weight = self.oracle_weight(rroot);
+        let oracle_weight = oracle_weight(self.quantity, rroot);
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
         // move (the constant part is exact: it uses the exact form factor).
         let source_variation: f64 = (1..ns)
@@ -509,7 +509,7 @@ impl ShotContext<'_> {
         let mut coverage_err: f64 = 0.0;
         let mut e_k = [[0.0f64; 3]; 64];
         let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
-        let mut psi = [[0.0; MAX_FUNCTIONS]; 64];
+        let psi = self.psi.of(rroot.shape);
         let mut any_visible = false;
         let mut any_blocked = false;
         // Partial visibility: the error the source's sampling may cause at a receiver point.
@@ -526,10 +526,7 @@ impl ShotContext<'_> {
         };
         for k in 0..nk + check_points.len() {
             let x = match rrule.get(k) {
-                Some(q) => {
-                    rbasis.eval(q.st, &mut psi[k]);
-                    receiving_point(rroot, &rp, rcover.as_ref(), k, q.st)
-                }
+                Some(q) => receiving_point(rroot, &rp, rcover.as_ref(), k, q.st),
                 None => visibility_point(rroot, &rnode.map, check_points[k - nk]),
             };
             let f_exact = emitter.form_factor(x, rroot.normal);
@@ -619,9 +616,7 @@ impl ShotContext<'_> {
 
         // Oracle: received irradiance at the control points against its projection.
         let weight = oracle_weight;
-        let mut err = (0..nk)
-            .map(|k| weighted_deviation(e_k[k], &dh, &psi[k], nr, weight))
-            .fold(0.0, f64::max);
+        let mut err = max_deviation(&psi[..nk], &e_k[..nk], &dh, nr, weight);
         // A shadow boundary crossing the link: the control points cannot see where it runs, so the
         // whole unoccluded transfer is at stake.
         let mut partial = any_visible && any_blocked;
@@ -630,14 +625,12 @@ impl ShotContext<'_> {
             // The quadrature points are interior: the irradiance near the element's border (the
             // falloff towards a room's corners) is not sampled. Compare the exact unoccluded
             // irradiance of the source's mean at points near the corners with the projection.
-            let mut phi = [0.0; MAX_FUNCTIONS];
-            for &st in corner_probe_points(rroot.shape) {
+            for (j, &st) in corner_probe_points(rroot.shape).iter().enumerate() {
                 // Off the face, the stand-in receives for the point (see `receiving_point`).
                 let x = visibility_point(rroot, &rnode.map, st);
                 let f = emitter.form_factor(x, rroot.normal);
-                rbasis.eval(st, &mut phi);
                 let e = src.coeffs[0].map(|c| f * c);
-                err = err.max(weighted_deviation(e, &dh, &phi, nr, weight));
+                err = err.max(weighted_deviation(e, &dh, &psi[nk + j], nr, weight));
             }
         }
         if !partial && err * rp.area <= threshold && unoccluded_max * rp.area > threshold {
@@ -714,14 +707,10 @@ impl ShotContext<'_> {
         let rroot = &self.roots[rcv_index];
         let rbasis = self.bases.of(rroot.shape);
         let nr = rbasis.len();
-        let weight = self.oracle_weight(rroot);
+        let weight = oracle_weight(self.quantity, rroot);
         let psi = self.psi.of(rroot.shape);
-        let deviation = |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| {
-            psi.iter()
-                .zip(e)
-                .map(|(phi, e)| weighted_deviation(*e, dh, phi, nr, weight))
-                .fold(0.0, f64::max)
-        };
+        let deviation =
+            |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| max_deviation(psi, e, dh, nr, weight);
         while let Some((b, sum)) = record.nodes.pop_first() {
             if self.cancel.load(Ordering::Relaxed) {
                 return;
@@ -757,15 +746,6 @@ impl ShotContext<'_> {
             }
         }
     }
-
-    /// What the oracle weighs each channel's irradiance error by: rho for radiance, 1 for
-    /// irradiance.
-    fn oracle_weight(&self, rroot: &ElementRoot) -> Rgb {
-        match self.quantity {
-            Quantity::Radiance => rroot.rho,
-            Quantity::Irradiance => [1.0; 3],
-        }
-    }
 }
 
 /// `sum_ch weight_ch |e_ch - projection_ch|` at a point where the receiver's basis functions take
@@ -783,6 +763,30 @@ fn weighted_deviation(
             weight[ch] * (e[ch] - proj).abs()
         })
         .sum()
+}
+
+/// The oracle's error over a set of points: the largest [`weighted_deviation`] of the values `e`
+/// from the projection `dh`, the receiver's basis taking the values `psi` at those points.
+fn max_deviation(
+    psi: &[[f64; MAX_FUNCTIONS]],
+    e: &[Rgb],
+    dh: &[Rgb; MAX_FUNCTIONS],
+    nr: usize,
+    weight: Rgb,
+) -> f64 {
+    debug_assert_eq!(psi.len(), e.len(), "one value per point");
+    psi.iter()
+        .zip(e)
+        .map(|(phi, e)| weighted_deviation(*e, dh, phi, nr, weight))
+        .fold(0.0, f64::max)
+}
+
+/// What the oracle weighs each channel's irradiance error by: rho for radiance, 1 for irradiance.
+fn oracle_weight(quantity: Quantity, rroot: &ElementRoot) -> Rgb {
+    match quantity {
+        Quantity::Radiance => rroot.rho,
+        Quantity::Irradiance => [1.0; 3],
+    }
 }
 
 /// The first of node `b`'s four children, splitting `b` first if it is a leaf (an extended
@@ -942,6 +946,7 @@ pub fn solve(
             roots: &roots,
             bases: &bases,
             rules: &rules,
+            psi: &psi,
             visibility,
             light,
             threshold,
