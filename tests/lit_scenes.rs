@@ -64,7 +64,7 @@ const IN_REPOSITORY: [&str; 3] = [
     "tests/data/redeclipse_dutility/redeclipse_dutility_lit.glb",
 ];
 
-/// The repository's scenes (the Red Eclipse level takes about 20 s at M2).
+/// The repository's scenes (the Red Eclipse level takes about a minute at M2, release build).
 #[test]
 fn repository_scenes_solve_cleanly() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
