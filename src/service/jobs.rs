@@ -322,7 +322,10 @@ impl Job {
     }
 
     pub fn record(&self) -> JobRecord {
-        let status = self.status.borrow();
+        self.record_of(&self.status.borrow())
+    }
+
+    fn record_of(&self, status: &JobStatus) -> JobRecord {
         JobRecord {
             id: self.id.to_string(),
             state: status.state,
@@ -333,6 +336,29 @@ impl Job {
             stop_reason: status.stop_reason.clone(),
             idempotency_key: self.idempotency_key.clone(),
         }
+    }
+
+    /// Applies `change` to a copy of the status, writes it to `state.json`, and only then makes it
+    /// the status everyone sees (blocking). For the transitions a client acts on (finished, or
+    /// back in the queue): a client that saw a job `succeeded` finds it `succeeded` after a crash,
+    /// never running it again. `change` returns whether it changed anything. Progress reports
+    /// that arrive meanwhile are replaced (only the runner that owns the job makes them, and it
+    /// is the caller).
+    pub fn settle(
+        &self,
+        store: &super::store::FileStore,
+        change: impl FnOnce(&mut JobStatus) -> bool,
+    ) -> bool {
+        let _guard = lock(&self.persist);
+        let mut next = self.status();
+        if !change(&mut next) {
+            return false;
+        }
+        if let Err(e) = store.write_state(&self.id, &self.record_of(&next)) {
+            tracing::error!(job = %self.id, error = %e, "could not write state.json");
+        }
+        self.status.send_replace(next);
+        true
     }
 
     /// Writes the current state to `state.json` (blocking). Failures are logged: the job goes on,
@@ -550,6 +576,40 @@ mod tests {
         assert!(board.has_room());
         assert!(board.forget(a.id.as_str()).is_some());
         assert_eq!(board.list().len(), 1);
+    }
+
+    /// Whoever sees a job finished (a poll, an event stream, the test killing the service right
+    /// after) must find it finished in `state.json`, or a crash would run it again. A watcher
+    /// spinning on the status reads the file the moment the change shows.
+    #[test]
+    fn a_settled_status_is_on_disk_before_anyone_sees_it() {
+        use crate::service::store::{FileStore, STATE_FILE};
+        let dir =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp-settle-unit");
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = FileStore::open(&dir).unwrap();
+        for round in 0..10 {
+            let id = store.create_job_dir(SystemTime::now()).unwrap();
+            let job = Arc::new(Job::new(id, SystemTime::now(), round, JobParams::default()));
+            job.persist(&store);
+            let state_file = store.job_dir(&job.id).join(STATE_FILE);
+            let watcher = {
+                let seen = job.subscribe();
+                std::thread::spawn(move || {
+                    while !seen.has_changed().unwrap_or(true) {
+                        std::hint::spin_loop();
+                    }
+                    let text = std::fs::read_to_string(&state_file).unwrap();
+                    serde_json::from_str::<serde_json::Value>(&text).unwrap()["state"].clone()
+                })
+            };
+            job.settle(&store, |s| {
+                s.state = JobState::Succeeded;
+                true
+            });
+            assert_eq!(watcher.join().unwrap(), "succeeded", "round {round}");
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

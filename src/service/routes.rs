@@ -511,18 +511,19 @@ pub async fn delete_job(
         job.request_cancel();
         if state.jobs().dequeue(&job) {
             // Still waiting: no runner will see it, so it ends here.
-            job.update(|s| {
-                if s.state != JobState::Queued {
-                    return false;
-                }
-                s.state = JobState::Cancelled;
-                true
-            });
             let store = state.store().clone();
-            let persisted = job.clone();
-            tokio::task::spawn_blocking(move || persisted.persist(&store))
-                .await
-                .map_err(|e| ApiError::internal("recording the cancellation failed", e))?;
+            let settled = job.clone();
+            tokio::task::spawn_blocking(move || {
+                settled.settle(&store, |s| {
+                    if s.state != JobState::Queued {
+                        return false;
+                    }
+                    s.state = JobState::Cancelled;
+                    true
+                })
+            })
+            .await
+            .map_err(|e| ApiError::internal("recording the cancellation failed", e))?;
         }
         tracing::info!(job = %job.id, "cancel requested");
         return Ok((StatusCode::ACCEPTED, Json(job.view())).into_response());

@@ -73,23 +73,23 @@ async fn runner(state: AppState, pool: Arc<rayon::ThreadPool>, index: usize) {
         if done_rx.await.is_err() {
             // The pool task ended without signalling: only possible if `process` itself panicked
             // outside its catch_unwind. Make sure the job does not stay `running`.
-            let failed = job.update(|s| {
-                if s.state.is_finished() {
-                    return false;
-                }
-                s.state = JobState::Failed;
-                s.error = Some(ErrorBody {
-                    code: "internal_error".into(),
-                    message: "the solver task ended unexpectedly; the server log has details"
-                        .into(),
-                });
-                true
-            });
-            if failed {
-                let store = state.store().clone();
-                let job = job.clone();
-                let _ = tokio::task::spawn_blocking(move || job.persist(&store)).await;
-            }
+            let store = state.store().clone();
+            let job = job.clone();
+            let _ = tokio::task::spawn_blocking(move || {
+                job.settle(&store, |s| {
+                    if s.state.is_finished() {
+                        return false;
+                    }
+                    s.state = JobState::Failed;
+                    s.error = Some(ErrorBody {
+                        code: "internal_error".into(),
+                        message: "the solver task ended unexpectedly; the server log has details"
+                            .into(),
+                    });
+                    true
+                })
+            })
+            .await;
         }
     }
 }
@@ -142,16 +142,15 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
     if let Finished::Solved(outcome) = &finished {
         if outcome.stop_reason == StopReason::Cancelled && !job.cancel_requested() {
             // Stopped for a shutdown: back to the queue, to start over at the next start.
-            job.update(|s| {
+            job.settle(store, |s| {
                 *s = JobStatus::queued();
                 true
             });
-            job.persist(store);
             tracing::info!("stopped for shutdown; queued again");
             return;
         }
     }
-    job.update(|s| {
+    job.settle(store, |s| {
         match finished {
             Finished::Solved(outcome) => {
                 s.state = if outcome.stop_reason == StopReason::Cancelled {
@@ -171,7 +170,6 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
         }
         true
     });
-    job.persist(store);
     tracing::info!(state = job.state().as_str(), "job finished");
     enforce_retention(state);
 }
