@@ -901,6 +901,11 @@ impl ShotContext<'_> {
     /// (`A_s F_sr - A_r F_rs`, m^2), else `None`. Without it, a slope meeting a wall delivers
     /// nothing to the wall's root if the wall's nine points all lie behind the slope's plane.
     fn receiver_misses_source(&self, seen_by_receiver: f64, x: &Exchange) -> Option<f64> {
+        if x.rcover.is_some_and(|c| c.status == ElementStatus::Empty) {
+            // No face inside: the element receives only for its stand-ins, which its neighbours
+            // on the face check.
+            return None;
+        }
         let srule = self.rules.of(self.roots[self.source_root].shape);
         let source_normal = self.roots[self.source_root].normal;
         let rings = partial_face_rings(x.rroot, x.rmap, x.rcover);
