@@ -496,13 +496,14 @@ impl ShotContext<'_> {
         let oracle_weight = oracle_weight(self.quantity, rroot);
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
         // move (the constant part is exact: it uses the exact form factor).
-        let source_variation: f64 = (1..ns)
-            .map(|bfn| {
-                (0..3)
-                    .map(|ch| oracle_weight[ch] * src.coeffs[bfn][ch].abs())
-                    .sum::<f64>()
-            })
-            .sum();
+        let weighted_amplitude = |bfn: usize| {
+            (0..3)
+                .map(|ch| oracle_weight[ch] * src.coeffs[bfn][ch].abs())
+                .sum::<f64>()
+        };
+        let source_variation: f64 = (1..ns).map(weighted_amplitude).sum();
+        // The source's mean radiosity, weighted as the oracle's errors are.
+        let source_strength = weighted_amplitude(0);
         let source_partial = src
             .cover
             .is_some_and(|c| c.status == ElementStatus::Partial);
@@ -540,10 +541,7 @@ impl ShotContext<'_> {
                 let covered = rcover.as_ref().map_or(1.0, |c| c.alpha[k]);
                 exchange_seen_by_receiver += q.weight * covered * f_exact * rp.area;
             }
-            let unoccluded = f_exact
-                * (0..3)
-                    .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
-                    .sum::<f64>();
+            let unoccluded = f_exact * source_strength;
             if rule_point {
                 unoccluded_max = unoccluded_max.max(unoccluded);
             }
@@ -661,10 +659,7 @@ impl ShotContext<'_> {
             },
         );
         if let Some(unseen) = missed {
-            let strength: f64 = (0..3)
-                .map(|ch| oracle_weight[ch] * src.coeffs[0][ch].abs())
-                .sum();
-            err = err.max(unseen * strength / rp.area);
+            err = err.max(unseen * source_strength / rp.area);
         }
         // The error the control points see across the receiver, before the partial-visibility bound.
         let receiver_err = err;
@@ -761,11 +756,7 @@ impl ShotContext<'_> {
             // Taken back: no longer links of this node (each is counted again where it lands).
             self.links.fetch_sub(resend.len() as u64, Ordering::Relaxed);
             for l in &resend {
-                for a in 0..nr {
-                    for ch in 0..3 {
-                        rcv.dh[b * nr + a][ch] -= l.dh[a][ch];
-                    }
-                }
+                take_back(rcv, b, &l.dh[..nr]);
             }
             let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
             debug_assert!(first > b, "children come after their parent");
@@ -839,13 +830,22 @@ fn first_child(
 
 /// Adds an accepted link's coefficients to node `b`'s gathered irradiance.
 fn gather(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+    add_to_gathered(rcv, b, dh, 1.0);
+    rcv.touched = true;
+}
+
+/// Removes a link's coefficients from node `b`'s gathered irradiance: exactly what `gather` added.
+fn take_back(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+    add_to_gathered(rcv, b, dh, -1.0);
+}
+
+fn add_to_gathered(rcv: &mut Hierarchy, b: usize, dh: &[Rgb], sign: f64) {
     let nr = dh.len();
     for (a, d) in dh.iter().enumerate() {
         for ch in 0..3 {
-            rcv.dh[b * nr + a][ch] += d[ch];
+            rcv.dh[b * nr + a][ch] += sign * d[ch];
         }
     }
-    rcv.touched = true;
 }
 
 /// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.
