@@ -55,14 +55,16 @@ pub fn node_box(map: &ChildMap) -> StBox {
 
 impl NodeCover {
     /// The cover of the element with map `map` (in root coordinates) of a root with `mask`.
-    /// `with_moments`: also integrate the basis over the face (stored elements need it; virtual
-    /// source elements do not).
+    /// `stored`: the element is a node of the hierarchy, which receives even when empty, so it
+    /// needs its stand-ins; a virtual source element that is empty never emits and gets none.
+    /// Moments are computed for every partly covered element: a partial source emits the face's
+    /// exact mean (see `transfer`).
     pub fn new(
         mask: &FaceMask,
         map: &ChildMap,
         rules: &CoverRules,
         basis: &Basis,
-        with_moments: bool,
+        stored: bool,
     ) -> Self {
         let b = node_box(map);
         let n = rules.rule.len();
@@ -88,13 +90,11 @@ impl NodeCover {
                     let zone = StBox::new(map.apply(z.min), map.apply(z.max));
                     cover.alpha[k] = mask.coverage(zone).fraction(&zone);
                 }
-                if with_moments {
-                    cover.moments = face_moments(mask, map, b, rules, basis);
-                }
+                cover.moments = face_moments(mask, map, b, rules, basis);
             }
         }
         // An empty element never emits: as a virtual source it needs no stand-ins.
-        if with_moments || cover.status != ElementStatus::Empty {
+        if stored || cover.status != ElementStatus::Empty {
             for p in cover.visibility_point[..n].iter_mut() {
                 *p = mask.closest_point(*p);
             }
@@ -159,6 +159,49 @@ pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: 
 /// extended root has one ([`extend`] runs after each split), so a missing one panics.
 pub fn of_node(h: &Hierarchy, root: &ElementRoot, b: usize) -> Option<NodeCover> {
     root.mask.as_ref().map(|_| h.covers[b])
+}
+
+/// Per node of `h`, the mean over the face inside it of the function whose coefficients `array`
+/// holds (the leaves' functions, integrated with their moments and summed up the tree; 0 for a
+/// node the face does not cover). An inner node's own coefficients are its projection over the
+/// whole element, empty part included: restricted to the face, they can integrate to much more or
+/// less than its leaves do where the function grows off the face. For the hierarchy of an
+/// extended root (it needs the covers).
+pub fn face_means(h: &Hierarchy, array: &[Rgb]) -> Vec<Rgb> {
+    debug_assert_eq!(h.covers.len(), h.nodes.len());
+    let n = h.len;
+    // Integrals over the face inside each node, relative to the root's area; children have larger
+    // indices than their parent, so a reverse sweep sees them first.
+    let mut integral = vec![[0.0; 3]; h.nodes.len()];
+    for i in (0..h.nodes.len()).rev() {
+        let node = &h.nodes[i];
+        if node.is_leaf() {
+            let area = node.map.e1.perp_dot(node.map.e2).abs();
+            for a in 0..n {
+                let m = h.covers[i].moments[a];
+                for ch in 0..3 {
+                    integral[i][ch] += area * m * array[i * n + a][ch];
+                }
+            }
+        } else {
+            let first = node.first_child as usize;
+            integral[i] =
+                std::array::from_fn(|ch| (first..first + 4).map(|c| integral[c][ch]).sum());
+        }
+    }
+    h.nodes
+        .iter()
+        .zip(&h.covers)
+        .zip(integral)
+        .map(|((node, cover), sum)| {
+            let face_area = node.map.e1.perp_dot(node.map.e2).abs() * cover.moments[0];
+            if face_area > 0.0 {
+                sum.map(|x| x / face_area)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect()
 }
 
 /// The integral over the root's face of the function whose coefficients `array` holds (per node,
@@ -318,5 +361,70 @@ mod tests {
         }
         assert!((sum - parent.moments[0]).abs() < 1e-13);
         assert!((parent.moments[0] - (1.0 - 0.09)).abs() < 1e-13);
+    }
+    #[test]
+    fn face_means_integrate_the_leaves_over_the_face() {
+        // A holed square split twice (the root, then its first child), each leaf holding its own
+        // linear function; the stored inner nodes hold something else entirely, as a pulled
+        // projection over the whole element may. Each node's face mean against a brute-force mean
+        // over a fine grid of the face points inside it, evaluated at the leaf holding each point.
+        let mask = holed(0.3);
+        let shape = Shape::Parallelogram;
+        let basis = Basis::new(shape, 2);
+        let r = rules(2);
+        let n = basis.len();
+        let mut h = Hierarchy::new(n);
+        let first = h.split(0, &basis, shape);
+        h.split(first, &basis, shape);
+        h.covers = h
+            .nodes
+            .iter()
+            .map(|node| NodeCover::new(&mask, &node.map, &r, &basis, true))
+            .collect();
+        for (i, node) in h.nodes.iter().enumerate() {
+            for a in 0..n {
+                let x = if node.is_leaf() {
+                    1.0 + 0.3 * i as f64 - 0.7 * a as f64
+                } else {
+                    100.0
+                };
+                h.u[i * n + a] = [x, 2.0 * x, -x];
+            }
+        }
+        let means = face_means(&h, &h.u);
+        let leaves: Vec<usize> = (0..h.nodes.len())
+            .filter(|&i| h.nodes[i].is_leaf())
+            .collect();
+        let inside = |i: usize, p: DVec2| {
+            let b = node_box(&h.nodes[i].map);
+            p.x >= b.min.x && p.x < b.max.x && p.y >= b.min.y && p.y < b.max.y
+        };
+        let grid = 600;
+        let mut phi = [0.0; MAX_FUNCTIONS];
+        for (node, mean) in means.iter().enumerate() {
+            let (mut sum, mut count) = (0.0, 0usize);
+            for gi in 0..grid {
+                for gj in 0..grid {
+                    let p = DVec2::new(
+                        (gi as f64 + 0.5) / grid as f64,
+                        (gj as f64 + 0.5) / grid as f64,
+                    );
+                    if !inside(node, p) || !mask.contains(p) {
+                        continue;
+                    }
+                    let leaf = *leaves.iter().find(|&&l| inside(l, p)).expect("a leaf");
+                    basis.eval(h.nodes[leaf].map.local(p), &mut phi);
+                    sum += (0..n).map(|a| phi[a] * h.u[leaf * n + a][0]).sum::<f64>();
+                    count += 1;
+                }
+            }
+            let brute = sum / count as f64;
+            assert!(
+                (mean[0] - brute).abs() < 2e-3 * brute.abs().max(1.0),
+                "node {node}: {} vs brute force {brute}",
+                mean[0]
+            );
+            assert!((mean[1] - 2.0 * mean[0]).abs() < 1e-12 && (mean[2] + mean[0]).abs() < 1e-12);
+        }
     }
 }

@@ -381,6 +381,31 @@ struct Source {
     cover: Option<NodeCover>,
     /// A partly covered element's face, for its exact form factor.
     rings: Option<Arc<FaceRings>>,
+    /// The unshot radiosity's mean over the face inside the element (coefficient 0 unless the
+    /// element is partly covered): what the element emits, per unit of face area.
+    face_mean: Rgb,
+}
+
+impl Source {
+    /// `face_mean` of an element whose radiosity is its own `coeffs` (a leaf, or virtual: pushed
+    /// from one), from its face moments; `stored`: the stored node's mean over its leaves
+    /// (`cover::face_means`).
+    fn face_mean(coeffs: &[Rgb], cover: Option<&NodeCover>, stored: Option<Rgb>) -> Rgb {
+        match cover {
+            Some(c) if c.status == ElementStatus::Partial && c.moments[0] > 0.0 => stored
+                .unwrap_or_else(|| {
+                    std::array::from_fn(|ch| {
+                        coeffs
+                            .iter()
+                            .zip(&c.moments)
+                            .map(|(x, m)| x[ch] * m)
+                            .sum::<f64>()
+                            / c.moments[0]
+                    })
+                }),
+            _ => coeffs[0],
+        }
+    }
 }
 
 struct ShotContext<'a> {
@@ -396,6 +421,9 @@ struct ShotContext<'a> {
     source_hierarchy: &'a Hierarchy,
     /// A direct shot: the emission alone (a constant), not the shooter's stored unshot.
     direct: bool,
+    /// An extended shooter's unshot radiosity, per stored node its mean over the face inside
+    /// (`cover::face_means`); `None` for a native shooter or a direct shot.
+    source_face_means: Option<&'a [Rgb]>,
     /// Absolute error threshold, in W (sum over channels).
     threshold: f64,
     min_edge: f64,
@@ -433,8 +461,13 @@ impl ShotContext<'_> {
                     Some(NodeCover::new(mask, &map, &self.rules.cover, basis, false))
                 }
             };
+            let stored_mean = stored
+                .zip(self.source_face_means)
+                .filter(|_| !self.direct)
+                .map(|(child, means)| means[child]);
             Source {
                 rings: partial_face_rings(sroot, &map, cover.as_ref()),
+                face_mean: Source::face_mean(&coeffs[..n], cover.as_ref(), stored_mean),
                 map,
                 depth: s.depth + 1,
                 node: stored,
@@ -492,6 +525,40 @@ impl ShotContext<'_> {
             }
             alpha_weight += alpha[l] * q.weight;
         }
+        // The source's radiosity at its rule points. A partly covered source's values are shifted
+        // by a constant so that their alpha-weighted mean is its exact mean over the face
+        // (`Source::face_mean`): the points keep the variation, the constant carries the face's
+        // exact power with the exact form factor. The alpha weights alone miss the face's shape
+        // (a sliver of face along the element's border takes the weight of points well inside,
+        // where the polynomial differs), and an inner node's polynomial is its projection over
+        // the whole element, off-face extension included: unshifted, a Red Eclipse floor's shot
+        // delivered 1.6x its unshot power.
+        let source_mean = src.face_mean;
+        let mut radiosity = [[0.0f64; 3]; 64];
+        for (l, b) in radiosity.iter_mut().take(srule.len()).enumerate() {
+            for bfn in 0..ns {
+                for ch in 0..3 {
+                    b[ch] += phi_s[l][bfn] * src.coeffs[bfn][ch];
+                }
+            }
+        }
+        if src
+            .cover
+            .is_some_and(|c| c.status == ElementStatus::Partial)
+            && alpha_weight > 0.0
+        {
+            let mut rule_mean = [0.0; 3];
+            for (l, q) in srule.iter().enumerate() {
+                for ch in 0..3 {
+                    rule_mean[ch] += q.weight * alpha[l] * radiosity[l][ch] / alpha_weight;
+                }
+            }
+            for b in radiosity.iter_mut().take(srule.len()) {
+                for ch in 0..3 {
+                    b[ch] += source_mean[ch] - rule_mean[ch];
+                }
+            }
+        }
         let ignore = [sroot.face.0, rroot.face.0];
         let oracle_weight = oracle_weight(self.quantity, rroot);
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
@@ -503,7 +570,9 @@ impl ShotContext<'_> {
         };
         let source_variation: f64 = (1..ns).map(weighted_amplitude).sum();
         // The source's mean radiosity, weighted as the oracle's errors are.
-        let source_strength = weighted_amplitude(0);
+        let source_strength: f64 = (0..3)
+            .map(|ch| oracle_weight[ch] * source_mean[ch].abs())
+            .sum();
         let source_partial = src
             .cover
             .is_some_and(|c| c.status == ElementStatus::Partial);
@@ -546,7 +615,7 @@ impl ShotContext<'_> {
                 unoccluded_max = unoccluded_max.max(unoccluded);
             }
             let mut fq = 0.0;
-            let mut g = [0.0; MAX_FUNCTIONS];
+            let mut e = [0.0; 3];
             let mut visible_weight = 0.0;
             let mut front_points = 0usize;
             let (mut front_weight, mut front_visible) = (0.0, 0.0);
@@ -571,8 +640,8 @@ impl ShotContext<'_> {
                     front_weight += ql.weight * alpha[l];
                     if vis {
                         front_visible += ql.weight * alpha[l];
-                        for bfn in 0..ns {
-                            g[bfn] += kxy * phi_s[l][bfn];
+                        for ch in 0..3 {
+                            e[ch] += kxy * radiosity[l][ch];
                         }
                     }
                 }
@@ -588,24 +657,18 @@ impl ShotContext<'_> {
                     coverage_err = coverage_err.max((f_exact - fq).abs() * source_variation);
                 }
                 let scale = f_exact / fq;
-                for gb in g.iter_mut().take(ns) {
-                    *gb *= scale;
+                for x in e.iter_mut() {
+                    *x *= scale;
                 }
             } else {
                 // Every source point is on or behind the receiver's plane (touching elements):
-                // the exact form factor with the visible fraction of the source, constant part only.
-                g = [0.0; MAX_FUNCTIONS];
+                // the exact form factor with the visible fraction of the source's face mean.
+                e = [0.0; 3];
                 if rule_point {
                     self.touching.fetch_add(1, Ordering::Relaxed);
                 }
                 if alpha_weight > 0.0 {
-                    g[0] = f_exact * visible_weight / alpha_weight;
-                }
-            }
-            let mut e = [0.0; 3];
-            for bfn in 0..ns {
-                for ch in 0..3 {
-                    e[ch] += g[bfn] * src.coeffs[bfn][ch];
+                    e = source_mean.map(|c| c * f_exact * visible_weight / alpha_weight);
                 }
             }
             e_k[k] = e;
@@ -633,7 +696,7 @@ impl ShotContext<'_> {
                 // Off the face, the stand-in receives for the point (see `receiving_point`).
                 let x = visibility_point(rroot, &rnode.map, st);
                 let f = emitter.form_factor(x, rroot.normal);
-                let e = src.coeffs[0].map(|c| f * c);
+                let e = source_mean.map(|c| f * c);
                 err = err.max(weighted_deviation(e, &dh, &psi[nk + j], nr, weight));
             }
         }
@@ -653,7 +716,6 @@ impl ShotContext<'_> {
                 rmap: &rnode.map,
                 rcover: rcover.as_ref(),
                 sp: &sp,
-                source_partial,
                 ys: &ys[..srule.len()],
                 alpha: &alpha[..srule.len()],
             },
@@ -881,8 +943,6 @@ struct Exchange<'a> {
     rmap: &'a ChildMap,
     rcover: Option<&'a NodeCover>,
     sp: &'a Patch,
-    /// The source is a partly covered element of an extended root.
-    source_partial: bool,
     /// The source's rule points and their emission weights (covered fractions).
     ys: &'a [DVec3],
     alpha: &'a [f64],
@@ -904,13 +964,9 @@ impl ShotContext<'_> {
     /// (`A_s F_sr - A_r F_rs`, m^2), else `None`. Without it, a slope meeting a wall delivers
     /// nothing to the wall's root if the wall's nine points all lie behind the slope's plane.
     fn receiver_misses_source(&self, seen_by_receiver: f64, x: &Exchange) -> Option<f64> {
-        if x.rcover.is_some_and(|c| c.status == ElementStatus::Empty) || x.source_partial {
+        if x.rcover.is_some_and(|c| c.status == ElementStatus::Empty) {
             // An empty receiver has no face inside: it receives only for its stand-ins, which
-            // its neighbours on the face check. A partly covered source's points estimate its
-            // exchange only as well as their alpha weights represent its face (the coverage
-            // check refines that); checked anyway, the receivers' refinement it caused exposed
-            // an over-delivery of such sources (a Red Eclipse floor's shot gave its receivers
-            // 1.7 times its unshot power, and the unshot ratio rose).
+            // its neighbours on the face check.
             return None;
         }
         let srule = self.rules.of(self.roots[self.source_root].shape);
@@ -1144,7 +1200,20 @@ pub fn solve(
             root_coeffs[..sbasis_len].copy_from_slice(source_h.coeffs(&source_h.u, 0));
         }
         let cover = source_h.covers.first().copied();
+        let source_face_means = if direct {
+            None
+        } else {
+            roots[shooter]
+                .mask
+                .as_ref()
+                .map(|_| cover::face_means(&source_h, &source_h.u))
+        };
         let source = Source {
+            face_mean: Source::face_mean(
+                &root_coeffs[..sbasis_len],
+                cover.as_ref(),
+                source_face_means.as_ref().map(|m| m[0]),
+            ),
             map: ChildMap::IDENTITY,
             depth: 0,
             node: Some(0),
@@ -1165,6 +1234,7 @@ pub fn solve(
                 source_root: shooter,
                 source_hierarchy: &source_h,
                 direct,
+                source_face_means: source_face_means.as_deref(),
                 threshold,
                 min_edge,
                 quantity: params.quantity,
