@@ -46,8 +46,8 @@ pub enum Quantity {
 /// Default refinement tolerance: a transfer is refined while its estimated error exceeds this
 /// fraction of the scene's emitted power. Chosen against the Monte Carlo references
 /// (`tests/reference.rs`, README): at M2, 2e-6 takes the Red Eclipse level from 5.6 % (1e-5) to
-/// 2.9 % and the Kenney building from 6.1 % to 3.9 %, at 2-4x the time; 1e-6 gains little more
-/// on the building (3.7 %) for three times the time again.
+/// 2.85 % and the Kenney building from 5.9 % to 3.5 %, at 2-4x the time; 1e-6 gains little more
+/// on the building (3.2 %) for twice the time again.
 pub const DEFAULT_TOLERANCE: f64 = 2e-6;
 /// Deepest subdivision of an element (4^depth sub-elements at most).
 pub const MAX_DEPTH: u8 = 9;
