@@ -197,14 +197,14 @@ fn furnace_is_two_at_every_probe_for_all_orders_and_both_modes() {
                 worst * 100.0
             );
             // Issue 5 asks 0.5 % at every order. M1 misses it at the floor probe (0.1, 0.1)
-            // (+2.5 % at the default tolerance 2e-6). The first bounce is right there: each wall
-            // lighting the black box alone gives the exact form factor within 0.4 %, and the five
-            // errors sum to +0.26 %. The later shots are weaker, and the oracle's threshold is in
-            // power (an absolute share of the emitted power): their links stop at coarser
-            // receivers, whose piecewise-constant projections of a varying form factor, gathered
-            // at different levels, do not sum to the constant. At M1 the accepted radiance error
-            // falls only as tolerance^(1/3): 2.5 % at 2e-6, 0.85 % at 1e-7 with 160 000 nodes.
-            // A known shortfall, held here to its measured size so that it cannot grow unseen.
+            // (-2.5 % at the default tolerance 2e-6). After the six direct shots every probe is
+            // within 0.1 %; the error builds up in the later shots, whose sources are split for
+            // their radiosity's detail: their links each pass the oracle, their sums at a receiver
+            // node do not, and the node-sum check runs after direct shots only. Judging every
+            // shot gives 0.37 % here, at a cost the suite cannot afford yet (ARCHITECTURE.md,
+            // "Known limits"). Lowering the tolerance barely helps (0.85 % at 1e-7, 160 000
+            // nodes). A known shortfall, held here to its measured size so that it cannot grow
+            // unseen.
             let bound = if order == 1 { 0.03 } else { 0.005 };
             assert!(
                 worst <= bound,
