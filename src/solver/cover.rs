@@ -66,6 +66,19 @@ impl NodeCover {
         basis: &Basis,
         stored: bool,
     ) -> Self {
+        Self::with_face(mask, map, rules, basis, stored).0
+    }
+
+    /// As [`NodeCover::new`], also returning the face inside a partly covered element (`clip`'s
+    /// rings, in root coordinates), which its moments are integrated over: a caller that needs
+    /// the face too (a virtual source's exact form factor) clips once.
+    pub fn with_face(
+        mask: &FaceMask,
+        map: &ChildMap,
+        rules: &CoverRules,
+        basis: &Basis,
+        stored: bool,
+    ) -> (Self, Option<Vec<Vec<DVec2>>>) {
         let b = node_box(map);
         let n = rules.rule.len();
         debug_assert!(n <= MAX_RULE_POINTS && rules.zones.len() == n);
@@ -78,11 +91,12 @@ impl NodeCover {
         for (k, q) in rules.rule.iter().enumerate() {
             cover.visibility_point[k] = map.apply(q.st);
         }
+        let mut face = None;
         match cover.status {
             ElementStatus::Full => {
                 cover.alpha[..n].fill(1.0);
                 cover.moments[0] = 1.0;
-                return cover;
+                return (cover, None);
             }
             ElementStatus::Empty => {}
             ElementStatus::Partial => {
@@ -90,7 +104,9 @@ impl NodeCover {
                     let zone = StBox::new(map.apply(z.min), map.apply(z.max));
                     cover.alpha[k] = mask.coverage(zone).fraction(&zone);
                 }
-                cover.moments = face_moments(mask, map, b, rules, basis);
+                let rings = mask.clip(b);
+                cover.moments = face_moments(&rings, map, b, rules, basis);
+                face = Some(rings);
             }
         }
         // An empty element never emits: as a virtual source it needs no stand-ins.
@@ -99,7 +115,7 @@ impl NodeCover {
                 *p = mask.closest_point(*p);
             }
         }
-        cover
+        (cover, face)
     }
 
     /// Whether the element emits at all.
@@ -108,9 +124,10 @@ impl NodeCover {
     }
 }
 
-/// `(1/|e|) * integral over (face inside e) of phi_i`, by signed triangles of the clipped face.
+/// `(1/|e|) * integral over (face inside e) of phi_i`, by signed triangles of the clipped face
+/// (`rings`: the face inside the box `b`, as `FaceMask::clip` gives it).
 fn face_moments(
-    mask: &FaceMask,
+    rings: &[Vec<DVec2>],
     map: &ChildMap,
     b: StBox,
     rules: &CoverRules,
@@ -119,7 +136,7 @@ fn face_moments(
     let nf = basis.len();
     let mut m = [0.0; MAX_FUNCTIONS];
     let mut phi = [0.0; MAX_FUNCTIONS];
-    for ring in mask.clip(b) {
+    for ring in rings {
         let p0 = ring[0];
         for i in 1..ring.len() - 1 {
             let (p1, p2) = (ring[i], ring[i + 1]);
@@ -161,6 +178,23 @@ pub fn of_node(h: &Hierarchy, root: &ElementRoot, b: usize) -> Option<NodeCover>
     root.mask.as_ref().map(|_| h.covers[b])
 }
 
+/// The integral over the face inside a leaf of area `area` (its box's) of the function whose
+/// `n` coefficients are `coeff(a)`: `area * sum_a m_a c_a`, per channel.
+fn leaf_face_integral(cover: &NodeCover, area: f64, n: usize, coeff: impl Fn(usize) -> Rgb) -> Rgb {
+    let mut leaf = [0.0; 3];
+    for a in 0..n {
+        let m = cover.moments[a];
+        if m == 0.0 {
+            continue;
+        }
+        let c = coeff(a);
+        for ch in 0..3 {
+            leaf[ch] += area * m * c[ch];
+        }
+    }
+    leaf
+}
+
 /// Per node of `h`, the mean over the face inside it of the function whose coefficients `array`
 /// holds (the leaves' functions, integrated with their moments and summed up the tree; 0 for a
 /// node the face does not cover). An inner node's own coefficients are its projection over the
@@ -177,12 +211,7 @@ pub fn face_means(h: &Hierarchy, array: &[Rgb]) -> Vec<Rgb> {
         let node = &h.nodes[i];
         if node.is_leaf() {
             let area = node.map.e1.perp_dot(node.map.e2).abs();
-            for a in 0..n {
-                let m = h.covers[i].moments[a];
-                for ch in 0..3 {
-                    integral[i][ch] += area * m * array[i * n + a][ch];
-                }
-            }
+            integral[i] = leaf_face_integral(&h.covers[i], area, n, |a| array[i * n + a]);
         } else {
             let first = node.first_child as usize;
             integral[i] =
@@ -235,17 +264,7 @@ pub fn face_integral_by(
             continue;
         }
         let area = root.area_m2 * node.map.e1.perp_dot(node.map.e2).abs();
-        let mut leaf = [0.0; 3];
-        for a in 0..n {
-            let m = cover.moments[a];
-            if m == 0.0 {
-                continue;
-            }
-            let c = coeff(i * n + a);
-            for ch in 0..3 {
-                leaf[ch] += area * m * c[ch];
-            }
-        }
+        let leaf = leaf_face_integral(cover, area, n, |a| coeff(i * n + a));
         for ch in 0..3 {
             sum[ch] += clamp(leaf[ch]);
         }

@@ -284,14 +284,21 @@ fn partial_face_rings(
     cover: Option<&NodeCover>,
 ) -> Option<Arc<FaceRings>> {
     match (&root.mask, cover) {
-        (Some(mask), Some(c)) if c.status == ElementStatus::Partial => Some(Arc::new(
-            mask.clip(node_box(map))
-                .iter()
-                .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
-                .collect(),
-        )),
+        (Some(mask), Some(c)) if c.status == ElementStatus::Partial => {
+            Some(world_rings(root, &mask.clip(node_box(map))))
+        }
         _ => None,
     }
+}
+
+/// Rings in `root`'s `(s,t)` as world-space rings.
+fn world_rings(root: &ElementRoot, rings: &[Vec<DVec2>]) -> Arc<FaceRings> {
+    Arc::new(
+        rings
+            .iter()
+            .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
+            .collect(),
+    )
 }
 
 impl Emitter {
@@ -454,19 +461,25 @@ impl ShotContext<'_> {
                 _ => basis.push(c, &s.coeffs[..n], &mut coeffs[..n]),
             }
             let map = s.map.then(&maps[c]);
-            let cover = match (&sroot.mask, stored) {
-                (None, _) => None,
-                (Some(_), Some(child)) => Some(h.covers[child]),
+            // A virtual element's face is clipped once, for its moments and its rings.
+            let (cover, rings) = match (&sroot.mask, stored) {
+                (None, _) => (None, None),
+                (Some(_), Some(child)) => {
+                    let cover = h.covers[child];
+                    (Some(cover), partial_face_rings(sroot, &map, Some(&cover)))
+                }
                 (Some(mask), None) => {
-                    Some(NodeCover::new(mask, &map, &self.rules.cover, basis, false))
+                    let (cover, face) =
+                        NodeCover::with_face(mask, &map, &self.rules.cover, basis, false);
+                    (Some(cover), face.map(|f| world_rings(sroot, &f)))
                 }
             };
+            // (`None` on a direct shot: its constant's face mean is the constant.)
             let stored_mean = stored
                 .zip(self.source_face_means)
-                .filter(|_| !self.direct)
                 .map(|(child, means)| means[child]);
             Source {
-                rings: partial_face_rings(sroot, &map, cover.as_ref()),
+                rings,
                 face_mean: Source::face_mean(&coeffs[..n], cover.as_ref(), stored_mean),
                 map,
                 depth: s.depth + 1,
@@ -542,11 +555,10 @@ impl ShotContext<'_> {
                 }
             }
         }
-        if src
+        let source_partial = src
             .cover
-            .is_some_and(|c| c.status == ElementStatus::Partial)
-            && alpha_weight > 0.0
-        {
+            .is_some_and(|c| c.status == ElementStatus::Partial);
+        if source_partial && alpha_weight > 0.0 {
             let mut rule_mean = [0.0; 3];
             for (l, q) in srule.iter().enumerate() {
                 for ch in 0..3 {
@@ -573,9 +585,6 @@ impl ShotContext<'_> {
         let source_strength: f64 = (0..3)
             .map(|ch| oracle_weight[ch] * source_mean[ch].abs())
             .sum();
-        let source_partial = src
-            .cover
-            .is_some_and(|c| c.status == ElementStatus::Partial);
         let mut coverage_err: f64 = 0.0;
         let mut e_k = [[0.0f64; 3]; 64];
         let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
