@@ -5,8 +5,12 @@
 
 use crate::domain::{build_domains, DomainMode, ElementRoot, ExtendedDomain, Surface};
 use crate::faces::{merge_planar_faces, FaceSet};
+use crate::scene::LightKind;
 use crate::scene::{Scene, SceneError};
-use crate::solver::{solve, visibility::Visibility, Progress, Solution, SolverParams};
+use crate::solver::visibility::{bounding_planes, Visibility, ENDPOINT_EPSILON_REL};
+use crate::solver::{solve, Progress, Solution, SolverParams};
+use glam::DVec3;
+use std::cmp::Ordering;
 use std::sync::atomic::AtomicBool;
 
 /// A scene prepared for solving: its faces, roots and occluders.
@@ -39,14 +43,22 @@ pub fn check_solvable(scene: &Scene) -> Result<(), SceneError> {
 pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
     let faces = merge_planar_faces(scene);
     let domains = build_domains(scene, &faces, mode);
+    let diagonal = scene.diagonal();
+    let bounding = bounding_faces(scene, &faces, diagonal);
     // Faces occlude with their own triangulations: the scene's triangles, some cut along contact
-    // lines, with welded corners.
+    // lines, with welded corners. Faces that bound the scene can occlude nothing.
     let occluders = faces
         .faces
         .iter()
-        .flat_map(|f| f.triangulation.iter().map(move |t| (*t, f.id.0)));
-    let diagonal = scene.diagonal();
+        .zip(&bounding)
+        .filter(|(_, &bounds)| !bounds)
+        .flat_map(|(f, _)| f.triangulation.iter().map(move |t| (*t, f.id.0)));
     let visibility = Visibility::new(occluders, diagonal);
+    tracing::debug!(
+        bounding = bounding.iter().filter(|&&b| b).count(),
+        faces = faces.faces.len(),
+        "faces left out of the occluders: they bound the scene"
+    );
     Prepared {
         faces,
         surfaces: domains.surfaces,
@@ -55,6 +67,49 @@ pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
         visibility,
         diagonal,
     }
+}
+
+/// Per face (in `faces.faces` order): does its plane bound the scene, so that it can occlude no
+/// segment the solver traces (`visibility::bounding_planes`)? The largest faces are tested first.
+fn bounding_faces(scene: &Scene, faces: &FaceSet, diagonal: f64) -> Vec<bool> {
+    let mut endpoints: Vec<DVec3> = faces
+        .faces
+        .iter()
+        .flat_map(|f| f.triangulation.iter().flatten().copied())
+        .collect();
+    let mut toward_lights = Vec::new();
+    for light in &scene.lights {
+        match light.kind {
+            LightKind::Point { position } | LightKind::Spot { position, .. } => {
+                endpoints.push(position)
+            }
+            LightKind::Directional { direction } => toward_lights.push(-direction),
+        }
+    }
+    // Each vertex once (faces share them).
+    endpoints.sort_by(|a, b| {
+        a.to_array()
+            .partial_cmp(&b.to_array())
+            .unwrap_or(Ordering::Equal)
+    });
+    endpoints.dedup();
+    let mut order: Vec<usize> = (0..faces.faces.len()).collect();
+    order.sort_by(|&a, &b| faces.faces[b].area_m2.total_cmp(&faces.faces[a].area_m2));
+    let planes: Vec<(DVec3, DVec3)> = order
+        .iter()
+        .map(|&i| {
+            let f = &faces.faces[i];
+            // (A face without an outline has no triangles: its verdict is moot.)
+            (f.normal, f.outer.first().copied().unwrap_or_default())
+        })
+        .collect();
+    let eps = ENDPOINT_EPSILON_REL * diagonal;
+    let bounds = bounding_planes(&planes, &endpoints, &toward_lights, eps);
+    let mut by_face = vec![false; faces.faces.len()];
+    for (&i, b) in order.iter().zip(bounds) {
+        by_face[i] = b;
+    }
+    by_face
 }
 
 /// Prepares and solves a scene.

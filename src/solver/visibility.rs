@@ -115,6 +115,71 @@ impl Visibility {
     }
 }
 
+/// Most point-plane tests [`bounding_planes`] makes; past it, the remaining planes are kept as
+/// occluders (always correct, only slower to trace).
+pub const MAX_BOUNDING_TESTS: usize = 100_000_000;
+
+/// Which planes can never occlude a segment: those with every point a segment can end at
+/// (`endpoints`: the scene's vertices and punctual lights' positions, all segment ends being on
+/// faces or at a light) weakly on one side, within `eps`, and every direction towards a
+/// directional light (`toward_lights`: its far shadow-ray ends) pointing to that side. A segment
+/// between two points of a closed half-space stays in it, so it can meet the plane only at an end,
+/// where hits do not count (`ENDPOINT_EPSILON_REL`), or lying in the plane, where it exchanges no
+/// light. The walls, floor and ceiling of a closed room are such planes: left out of the BVH, the
+/// rays along them stop traversing their padded boxes. Planes are taken in the given order
+/// (largest faces first pays best) until [`MAX_BOUNDING_TESTS`] is spent.
+pub fn bounding_planes(
+    planes: &[(DVec3, DVec3)],
+    endpoints: &[DVec3],
+    toward_lights: &[DVec3],
+    eps: f64,
+) -> Vec<bool> {
+    bounding_planes_within(planes, endpoints, toward_lights, eps, MAX_BOUNDING_TESTS)
+}
+
+fn bounding_planes_within(
+    planes: &[(DVec3, DVec3)],
+    endpoints: &[DVec3],
+    toward_lights: &[DVec3],
+    eps: f64,
+    mut budget: usize,
+) -> Vec<bool> {
+    // Points in a scrambled order, so that a plane with points on both sides is found out early.
+    let mut points = endpoints.to_vec();
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    for i in (1..points.len()).rev() {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        points.swap(i, (state % (i as u64 + 1)) as usize);
+    }
+    planes
+        .iter()
+        .map(|&(normal, origin)| {
+            if budget < points.len() {
+                return false;
+            }
+            let (mut front, mut back) = (false, false);
+            for (i, p) in points.iter().enumerate() {
+                let d = normal.dot(*p - origin);
+                front |= d > eps;
+                back |= d < -eps;
+                if front && back {
+                    budget -= i + 1;
+                    return false;
+                }
+            }
+            budget -= points.len();
+            // Every end in the plane: a segment starts at the plane whatever its direction.
+            if !(front || back) {
+                return true;
+            }
+            let side = if front { 1.0 } else { -1.0 };
+            toward_lights.iter().all(|t| side * normal.dot(*t) >= 0.0)
+        })
+        .collect()
+}
+
 /// Möller-Trumbore in f64; returns the ray parameter of the hit (edges inclusive).
 #[inline]
 fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64> {
@@ -188,6 +253,145 @@ mod tests {
             let h = p + d * t;
             let brute_blocked = (0.0..=1.0).contains(&h.x) && (0.0..=1.0).contains(&h.y);
             assert_eq!(!v.visible(p, q, [u32::MAX; 2]), brute_blocked, "{p} {q}");
+        }
+    }
+
+    /// `(triangle, face)` pairs.
+    type Occluders = Vec<([DVec3; 3], u32)>;
+    /// Per face, its plane: `(normal, a point)`.
+    type Planes = Vec<(DVec3, DVec3)>;
+
+    /// A closed box [0,2]x[0,1]x[0,1.5] (faces 0-5, inward) around a block (faces 6-11, outward),
+    /// as `(triangle, face)` pairs and per face its plane.
+    fn room_with_block(block_lo: DVec3, block_size: DVec3) -> (Occluders, Planes) {
+        let mut tris = Vec::new();
+        let mut planes = Vec::new();
+        let mut quad = |o: DVec3, u: DVec3, v: DVec3| {
+            let face = planes.len() as u32;
+            tris.push(([o, o + u, o + u + v], face));
+            tris.push(([o, o + u + v, o + v], face));
+            planes.push((u.cross(v).normalize(), o));
+        };
+        let (x, y, z) = (DVec3::X * 2.0, DVec3::Y, DVec3::Z * 1.5);
+        let o = DVec3::ZERO;
+        quad(o, y, z);
+        quad(o + x, z, y);
+        quad(o, z, x);
+        quad(o + y, x, z);
+        quad(o, x, y);
+        quad(o + z, y, x);
+        let (bx, by, bz) = (
+            DVec3::X * block_size.x,
+            DVec3::Y * block_size.y,
+            DVec3::Z * block_size.z,
+        );
+        let c = block_lo;
+        quad(c, bz, by);
+        quad(c + bx, by, bz);
+        quad(c, bx, bz);
+        quad(c + by, bz, bx);
+        quad(c, by, bx);
+        quad(c + bz, bx, by);
+        (tris, planes)
+    }
+
+    fn vertices(tris: &[([DVec3; 3], u32)]) -> Vec<DVec3> {
+        tris.iter().flat_map(|(t, _)| t.iter().copied()).collect()
+    }
+
+    #[test]
+    fn a_rooms_walls_bound_it_and_its_furniture_does_not() {
+        let (tris, planes) = room_with_block(DVec3::new(0.8, 0.2, 0.5), DVec3::splat(0.4));
+        let ends = vertices(&tris);
+        let bounds = bounding_planes(&planes, &ends, &[], 1e-9);
+        assert_eq!(bounds[..6], [true; 6], "the six walls");
+        assert_eq!(
+            bounds[6..],
+            [false; 6],
+            "the block's faces have room on both sides"
+        );
+        // A directional light below the floor shines up through it (shadow rays end below): the
+        // floor (face 2, normal +y) occludes; a light above leaves it bounding.
+        let up = bounding_planes(&planes, &ends, &[DVec3::NEG_Y], 1e-9);
+        assert!(
+            !up[2] && up[3],
+            "floor occludes a light from below, ceiling bounds"
+        );
+        let down = bounding_planes(&planes, &ends, &[DVec3::Y], 1e-9);
+        assert!(down[2] && !down[3]);
+        // A point light outside the room, beyond the wall at x = 2: that wall occludes it.
+        let mut with_light = ends.clone();
+        with_light.push(DVec3::new(3.0, 0.5, 0.7));
+        let outside = bounding_planes(&planes, &with_light, &[], 1e-9);
+        assert!(!outside[1] && outside[0]);
+        // A spent budget keeps planes as occluders: never wrong, only slower.
+        let spent = bounding_planes_within(&planes, &ends, &[], 1e-9, ends.len() * 3);
+        assert_eq!(spent[..3], [true; 3]);
+        assert!(!spent[3..].iter().any(|&b| b));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 64,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0xb0_0d_ed),
+            failure_persistence: None,
+            ..Default::default()
+        })]
+
+        /// Leaving the bounding faces out of the BVH changes no verdict, for segments between
+        /// points on faces, towards a point light and towards directional lights' far ends (the
+        /// brute-force twin keeps every face).
+        #[test]
+        fn leaving_bounding_faces_out_changes_no_verdict(
+            seed in proptest::prelude::any::<u64>(),
+            lo in proptest::array::uniform3(0.05f64..1.0),
+            size in proptest::array::uniform3(0.05f64..0.45),
+            light in proptest::array::uniform3(-0.5f64..2.5),
+            sun in proptest::array::uniform3(-1.0f64..1.0),
+        ) {
+            let (tris, planes) = room_with_block(DVec3::from(lo), DVec3::from(size));
+            let light = DVec3::from(light);
+            let toward_sun = DVec3::from(sun).normalize_or(DVec3::Y);
+            let mut ends = vertices(&tris);
+            ends.push(light);
+            let diagonal = 3.0;
+            let eps = ENDPOINT_EPSILON_REL * diagonal;
+            let bounds = bounding_planes(&planes, &ends, &[toward_sun], eps);
+            let all = Visibility::new(tris.clone(), diagonal);
+            let culled = Visibility::new(
+                tris.iter().copied().filter(|(_, f)| !bounds[*f as usize]),
+                diagonal,
+            );
+            let mut state = seed | 1;
+            let mut rnd = || {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                (state >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let point_on_face = |rnd: &mut dyn FnMut() -> f64| {
+                let (t, f) = tris[(rnd() * tris.len() as f64) as usize % tris.len()];
+                let (mut a, mut b) = (rnd(), rnd());
+                if a + b > 1.0 {
+                    (a, b) = (1.0 - a, 1.0 - b);
+                }
+                (t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b, f)
+            };
+            for _ in 0..300 {
+                let (p, fp) = point_on_face(&mut rnd);
+                let (q, fq) = point_on_face(&mut rnd);
+                for (end, ignore) in [
+                    (q, [fp, fq]),
+                    (light, [fp, u32::MAX]),
+                    (p + toward_sun * 4.0 * diagonal, [fp, u32::MAX]),
+                ] {
+                    proptest::prop_assert_eq!(
+                        all.visible(p, end, ignore),
+                        culled.visible(p, end, ignore),
+                        "{} -> {}", p, end
+                    );
+                }
+            }
         }
     }
 }
