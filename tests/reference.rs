@@ -22,7 +22,7 @@ const TARGET_NRMS: f64 = 0.03;
 
 /// Sets that miss [`TARGET_NRMS`] at default settings, with the ceiling held here: the measured
 /// nrms plus a margin for platform rounding. Issue 5 stays open while this list is not empty.
-const SHORTFALLS: [(&str, f64); 1] = [("kenney_building_small_c_lit", 0.037)];
+const SHORTFALLS: [(&str, f64); 1] = [("kenney_building_small_c_lit", 0.035)];
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))

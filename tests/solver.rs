@@ -196,16 +196,12 @@ fn furnace_is_two_at_every_probe_for_all_orders_and_both_modes() {
                 "furnace {mode:?} M{order}: worst probe {:.3} %",
                 worst * 100.0
             );
-            // Issue 5 asks 0.5 % at every order. M1 misses it at the floor probe (0.1, 0.1)
-            // (-2.5 % at the default tolerance 2e-6). After the six direct shots every probe is
-            // within 0.1 %; the error builds up in the later shots, whose sources are split for
-            // their radiosity's detail: their links each pass the oracle, their sums at a receiver
-            // node do not, and the node-sum check runs after direct shots only. Judging every
-            // shot gives 0.37 % here, at a cost the suite cannot afford yet (ARCHITECTURE.md,
-            // "Known limits"). Lowering the tolerance barely helps (0.85 % at 1e-7, 160 000
-            // nodes). A known shortfall, held here to its measured size so that it cannot grow
-            // unseen.
-            let bound = if order == 1 { 0.03 } else { 0.005 };
+            // Issue 5 asks 0.5 % at every order (measured: M1 0.37 %, M2 0.09 %, M3 0.07 %).
+            // M1 is the hard case: a piecewise-constant receiver gathers links at several levels,
+            // and a later shot's source, split for its radiosity's detail, sends many links that
+            // each pass the oracle while their sum does not. With the node-sum check after direct
+            // shots only, M1 was 2.5 % off here and 7 % off 1 cm from a corner.
+            let bound = 0.005;
             assert!(
                 worst <= bound,
                 "{mode:?} M{order}: worst probe off by {worst}"
@@ -280,21 +276,21 @@ fn furnace_with_holed_walls_in_both_modes() {
                 worst_mean * 100.0,
                 worst_probe * 100.0
             );
-            // Face means hold the furnace in both modes. Probes: extended domains meet the
-            // issue's 0.5 % at M2 and M3 (0.24 / 0.24 % measured); M1 misses it as in the plain
-            // furnace (2.6 %), and the tessellated baseline misses it at the triangles' corners
-            // around the holes (3.4 / 2.0 / 0.65 % measured; its M2 probe was 0.99 % at the old
-            // default tolerance 1e-5: finer links leave a corner triangle with a larger radiance
-            // error within the same power bound). Bounds at their measured sizes.
+            // Face means hold the furnace in both modes. Probes (this test's own, beyond the
+            // issue's plain furnace): extended domains meet 0.5 % at M2 and M3 (0.17 / 0.13 %
+            // measured), M1 comes near (0.68 %); the tessellated baseline misses it at the
+            // triangles' corners around the holes (2.5 / 0.70 / 0.39 % measured): a small corner
+            // triangle may carry a larger radiance error within the same power bound. Bounds at
+            // their measured sizes.
             let mean_bound = if order == 1 { 0.01 } else { 0.005 };
             assert!(
                 worst_mean <= mean_bound,
                 "{mode:?} M{order}: a face mean is off by {worst_mean}"
             );
             let bound = match (mode, order) {
-                (_, 1) => 0.04,
+                (DomainMode::Extended, 1) => 0.008,
                 (DomainMode::Extended, _) => 0.005,
-                (DomainMode::Tessellated, 2) => 0.025,
+                (DomainMode::Tessellated, 1) => 0.03,
                 (DomainMode::Tessellated, _) => 0.01,
             };
             assert!(

@@ -47,7 +47,8 @@ pub enum Quantity {
 /// fraction of the scene's emitted power. Chosen against the Monte Carlo references
 /// (`tests/reference.rs`, README): at M2, 2e-6 takes the Red Eclipse level from 5.6 % (1e-5) to
 /// 2.85 % and the Kenney building from 5.9 % to 3.5 %, at 2-4x the time; 1e-6 gains little more
-/// on the building (3.2 %) for twice the time again.
+/// on the building (3.2 %) for twice the time again (measured with the node-sum check after
+/// direct shots only; after every shot, the default gives 2.64 % and 3.29 %).
 pub const DEFAULT_TOLERANCE: f64 = 2e-6;
 /// Deepest subdivision of an element (4^depth sub-elements at most).
 pub const MAX_DEPTH: u8 = 9;
@@ -66,7 +67,7 @@ pub struct SolverParams {
     pub quantity: Quantity,
     pub indirect_only: bool,
     pub max_iterations: u64,
-    /// After each direct shot, judge every receiver node on the sum of the links it gathered and
+    /// After each shot, judge every receiver node on the sum of the links it gathered and
     /// refine where that sum is not represented within the tolerance (`refine_by_node_sums`).
     /// On by default; off gives the per-link oracle alone (`tests/solver.rs` compares both).
     pub node_sums: bool,
@@ -133,7 +134,7 @@ pub struct SolveStats {
     /// Receiver points where no source quadrature point lay in front of the receiver (touching
     /// elements): the exact form factor times the visible fraction stood in for the quadrature.
     pub touching_fallbacks: u64,
-    /// Receiver nodes that gave links back to their children after a direct shot, because the
+    /// Receiver nodes that gave links back to their children after a shot, because the
     /// sum of their links was not represented within the tolerance (`SolverParams::node_sums`).
     pub node_sum_splits: u64,
 }
@@ -1236,9 +1237,10 @@ pub fn solve(
                 bases: &bases,
                 rules: &rules,
                 psi: &psi,
-                // Direct shots only: a large emitter's shadows are where split links add up;
-                // judging every shot doubles the time again for little (README).
-                node_sums: direct && params.node_sums,
+                // Every shot: split links add up under a large emitter's shadows, and wherever a
+                // later shot's source is split for its radiosity's detail (without the check on
+                // those shots, the M1 furnace was 7 % off near its corners; README).
+                node_sums: params.node_sums,
                 visibility,
                 source_root: shooter,
                 source_hierarchy: &source_h,
