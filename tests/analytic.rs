@@ -149,13 +149,20 @@ fn enclosure_balance(rho: f64, order: usize) {
 
 #[test]
 fn closed_enclosure_mean_radiosity_balances_emitted_power() {
-    // Both rho at M1 and M2. M1 at rho 0.9 was 3.1 % high while receiver nodes were judged on
-    // the sum of their links after direct shots only: the later shots' split links added up
-    // (now -0.16 %).
-    for order in [1, 2] {
-        enclosure_balance(0.5, order);
-        enclosure_balance(0.9, order);
-    }
+    // Both rho at M2, the default order, and rho 0.5 at M1; M1 at rho 0.9 (about 40 bounces over
+    // tens of thousands of constant elements, two minutes in release) is the ignored test below.
+    enclosure_balance(0.5, 1);
+    enclosure_balance(0.5, 2);
+    enclosure_balance(0.9, 2);
+}
+
+/// M1 at rho 0.9 was 3.1 % high while receiver nodes were judged on the sum of their links after
+/// direct shots only: the later shots' split links added up (now -0.16 %). Slow (two minutes in
+/// release): `cargo test --release --test analytic -- --ignored`.
+#[test]
+#[ignore]
+fn closed_enclosure_balances_at_m1_and_rho_0_9() {
+    enclosure_balance(0.9, 1);
 }
 
 /// Does the segment `a -> b` pass through the open box `[lo, hi]`? (Slab test, the test's own.)
