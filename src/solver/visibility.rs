@@ -272,26 +272,25 @@ mod tests {
             tris.push(([o, o + u + v, o + v], face));
             planes.push((u.cross(v).normalize(), o));
         };
-        let (x, y, z) = (DVec3::X * 2.0, DVec3::Y, DVec3::Z * 1.5);
-        let o = DVec3::ZERO;
-        quad(o, y, z);
-        quad(o + x, z, y);
-        quad(o, z, x);
-        quad(o + y, x, z);
-        quad(o, x, y);
-        quad(o + z, y, x);
-        let (bx, by, bz) = (
-            DVec3::X * block_size.x,
-            DVec3::Y * block_size.y,
-            DVec3::Z * block_size.z,
-        );
-        let c = block_lo;
-        quad(c, bz, by);
-        quad(c + bx, by, bz);
-        quad(c, bx, bz);
-        quad(c + by, bz, bx);
-        quad(c, by, bx);
-        quad(c + bz, bx, by);
+        // The six sides of the box at `lo` with edges `x, y, z`, normals inward.
+        let sides = |lo: DVec3, x: DVec3, y: DVec3, z: DVec3| {
+            [
+                (lo, y, z),
+                (lo + x, z, y),
+                (lo, z, x),
+                (lo + y, x, z),
+                (lo, x, y),
+                (lo + z, y, x),
+            ]
+        };
+        for (o, u, v) in sides(DVec3::ZERO, DVec3::X * 2.0, DVec3::Y, DVec3::Z * 1.5) {
+            quad(o, u, v);
+        }
+        let sx = DVec3::X * block_size.x;
+        let (sy, sz) = (DVec3::Y * block_size.y, DVec3::Z * block_size.z);
+        for (o, u, v) in sides(block_lo, sx, sy, sz) {
+            quad(o, v, u); // outward
+        }
         (tris, planes)
     }
 
