@@ -3,7 +3,8 @@
 //!
 //! Modules in data-flow order; each depends only on those before it (see ARCHITECTURE.md):
 //! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`; `reference` measures
-//! solutions against Monte Carlo references (tests and benches).
+//! solutions against Monte Carlo references (tests and benches); `shuffle` is the deterministic
+//! shuffle several stages share.
 
 // Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;
 // iterator chains would hide the formulas.
@@ -18,4 +19,5 @@ pub mod pipeline;
 pub mod reference;
 pub mod scene;
 pub mod service;
+pub mod shuffle;
 pub mod solver;

@@ -190,23 +190,6 @@ pub struct TrapezoidalMap {
     stats: BuildStats,
 }
 
-/// SplitMix64: a tiny, good-enough generator for the shuffle.
-struct SplitMix64(u64);
-
-impl SplitMix64 {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-    /// Uniform in `0..n` (n > 0), by multiply-shift.
-    fn below(&mut self, n: usize) -> usize {
-        ((u128::from(self.next()) * n as u128) >> 64) as usize
-    }
-}
-
 impl TrapezoidalMap {
     /// Builds the map of `rings` (see the module's input contract). Repeated consecutive vertices
     /// are skipped; a ring with fewer than two distinct vertices adds nothing.
@@ -339,10 +322,7 @@ impl Builder {
                 });
             }
         }
-        let mut rng = SplitMix64(SHUFFLE_SEED);
-        for i in (1..segments.len()).rev() {
-            segments.swap(i, rng.below(i + 1));
-        }
+        crate::shuffle::shuffle(&mut segments, SHUFFLE_SEED);
         let mut map = Builder {
             vertices,
             segments: Vec::with_capacity(segments.len()),

@@ -119,6 +119,9 @@ impl Visibility {
 /// occluders (always correct, only slower to trace).
 pub const MAX_BOUNDING_TESTS: usize = 100_000_000;
 
+/// Seed of the order in which [`bounding_planes`] tries the points (any fixed value).
+const POINT_ORDER_SEED: u64 = 0xb0d1_7e55_0f5c_e4e5;
+
 /// Which planes can never occlude a segment: those with every point a segment can end at
 /// (`endpoints`: the scene's vertices and punctual lights' positions, all segment ends being on
 /// faces or at a light) weakly on one side, within `eps`, and every direction towards a
@@ -146,13 +149,7 @@ fn bounding_planes_within(
 ) -> Vec<bool> {
     // Points in a scrambled order, so that a plane with points on both sides is found out early.
     let mut points = endpoints.to_vec();
-    let mut state = 0x9e37_79b9_7f4a_7c15u64;
-    for i in (1..points.len()).rev() {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        points.swap(i, (state % (i as u64 + 1)) as usize);
-    }
+    crate::shuffle::shuffle(&mut points, POINT_ORDER_SEED);
     planes
         .iter()
         .map(|&(normal, origin)| {
