@@ -1,11 +1,9 @@
 //! Accuracy against independent Monte Carlo references (issue 5): every data set of
 //! `tests/data/reference/` (copied from `../shared/reference/`; its README defines the metric) is
 //! solved at default settings and its normalised RMS error printed beside the reference's own noise
-//! floor. Issue 5 asks nrms <= 3 % on every set; sets that miss it are listed in [`SHORTFALLS`]
-//! and held to their measured ceiling so they cannot get worse unseen.
+//! floor, and held to issue 5's target: nrms <= 3 % on every set.
 //!
-//! Print the table: `cargo test --release --test reference -- --nocapture`. The target itself, which
-//! fails while a shortfall stands: `cargo test --release --test reference -- --ignored`.
+//! Print the table: `cargo test --release --test reference -- --nocapture`.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
@@ -19,10 +17,6 @@ use wavrad::solver::SolverParams;
 
 /// Issue 5's target at default settings.
 const TARGET_NRMS: f64 = 0.03;
-
-/// Sets that miss [`TARGET_NRMS`] at default settings, with the ceiling held here: the measured
-/// nrms plus a margin for platform rounding. Issue 5 stays open while this list is not empty.
-const SHORTFALLS: [(&str, f64); 1] = [("kenney_building_small_c_lit", 0.035)];
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -88,22 +82,6 @@ fn measure() -> Vec<(String, ReferenceError, f64, f64)> {
 }
 
 #[test]
-fn reference_sets_at_default_settings_hold_their_accuracy() {
-    for (name, error, _, _) in measure() {
-        let ceiling = SHORTFALLS
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map_or(TARGET_NRMS, |&(_, c)| c);
-        assert!(
-            error.nrms <= ceiling,
-            "{name}: nrms {:.4} above {ceiling}",
-            error.nrms
-        );
-    }
-}
-
-#[test]
-#[ignore = "issue 5's 3 % target; fails while SHORTFALLS is not empty"]
 fn every_reference_set_meets_the_target() {
     let misses: Vec<String> = measure()
         .into_iter()

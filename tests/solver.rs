@@ -665,3 +665,126 @@ fn an_emitter_behind_which_a_walls_points_all_lie_still_lights_the_wall() {
         }
     }
 }
+
+/// A 3 x 3 m sky panel (L_e = 1, facing down) 15 cm over a small black box (15 x 2.5 x 15 cm)
+/// whose front (facing -z, 30 cm from the sky's centre line) looks at a black parapet 7.5 cm high
+/// 10 cm in front of it: the front sees the sky through a strip about 22 cm deep, between the
+/// sky's rule points and its corner probes, which the parapet or the box all hide.
+const STRIP_SKY_Y: f64 = 0.15;
+const BOX_FRONT_Z: f64 = 0.3;
+const PARAPET_Z: f64 = 0.2;
+const PARAPET_TOP: f64 = 0.075;
+
+fn parapet_scene() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let sky = b.material([0.0; 3], [1.0; 3], false);
+    let black = b.material([0.0; 3], [0.0; 3], false);
+    b.quad(
+        sky,
+        DVec3::new(-1.5, STRIP_SKY_Y, -1.5),
+        DVec3::X * 3.0,
+        DVec3::Z * 3.0,
+        1,
+    );
+    // The box: front (the face under test), top, back and sides, all facing out.
+    let (o, w, h, d) = (
+        DVec3::new(-0.075, 0.0, BOX_FRONT_Z),
+        DVec3::X * 0.15,
+        DVec3::Y * 0.025,
+        DVec3::Z * 0.15,
+    );
+    b.quad(black, o, h, w, 1);
+    b.quad(black, o + h, d, w, 1);
+    b.quad(black, o + d, w, h, 1);
+    b.quad(black, o, d, h, 1);
+    b.quad(black, o + w, h, d, 1);
+    // The parapet, facing the box.
+    b.quad(
+        black,
+        DVec3::new(-1.5, 0.0, PARAPET_Z),
+        DVec3::X * 3.0,
+        DVec3::Y * PARAPET_TOP,
+        1,
+    );
+    b.to_glb()
+}
+
+/// The sky's form factor at point `x` of the box's front (normal -z) over the parapet, by brute
+/// force: the sky on a fine grid, each sample's ray tested against the parapet analytically.
+fn sky_over_the_parapet(x: DVec3) -> f64 {
+    let n = 600;
+    let cell = 9.0 / (n * n) as f64;
+    let mut f = 0.0;
+    for i in 0..n {
+        for j in 0..n {
+            let q = DVec3::new(
+                -1.5 + 3.0 * (i as f64 + 0.5) / n as f64,
+                STRIP_SKY_Y,
+                -1.5 + 3.0 * (j as f64 + 0.5) / n as f64,
+            );
+            let d = q - x;
+            let r2 = d.length_squared();
+            let (cos_x, cos_q) = (-d.z / r2.sqrt(), d.y / r2.sqrt());
+            if cos_x <= 0.0 || cos_q <= 0.0 {
+                continue;
+            }
+            // Beyond the parapet: the ray crosses its plane below its top, it is blocked.
+            if q.z < PARAPET_Z {
+                let c = x + d * ((PARAPET_Z - x.z) / d.z);
+                if c.y <= PARAPET_TOP && c.x.abs() <= 1.5 {
+                    continue;
+                }
+            }
+            f += cos_x * cos_q / (std::f64::consts::PI * r2) * cell;
+        }
+    }
+    f
+}
+
+#[test]
+fn a_small_face_sees_a_large_sky_through_a_strip_over_a_parapet() {
+    // Every ray from the front's rule points and corners to the sky's rule points and corners is
+    // blocked (by the parapet, or, behind the front's plane, by the box), yet the sky above the
+    // gap lights the front: rays spread over both elements find the strip.
+    let glb = parapet_scene();
+    // Exact: the front's mean visible form factor, on a midpoint grid.
+    let (nx, ny) = (12, 4);
+    let exact = (0..nx * ny)
+        .map(|k| {
+            let x = -0.075 + 0.15 * ((k % nx) as f64 + 0.5) / nx as f64;
+            let y = 0.025 * ((k / nx) as f64 + 0.5) / ny as f64;
+            sky_over_the_parapet(DVec3::new(x, y, BOX_FRONT_Z))
+        })
+        .sum::<f64>()
+        / (nx * ny) as f64;
+    let scene = load_scene(&glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
+    for order in [1, 2, 3] {
+        let params = SolverParams {
+            order,
+            quantity: wavrad::solver::Quantity::Irradiance,
+            ..Default::default()
+        };
+        let (_, sol) = bake(
+            &scene,
+            DomainMode::Extended,
+            params,
+            &AtomicBool::new(false),
+            &mut |_| {},
+        )
+        .expect("bakes");
+        let front = sol
+            .roots
+            .iter()
+            .position(|r| r.normal.z < -0.5 && r.face_area_m2 < 0.01)
+            .expect("the box's front");
+        // Measured: M1 -3.1 %, M2 +0.41 %, M3 -0.11 % (without the spread rays: 0 at every
+        // order). M1's constants over the strip's partial links stay within the power budget.
+        let bound = if order == 1 { 0.05 } else { 0.01 };
+        check(
+            &format!("M{order}: the box front's mean H / pi"),
+            sol.mean_value(front)[0],
+            exact,
+            bound,
+        );
+    }
+}
