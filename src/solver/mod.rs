@@ -950,27 +950,6 @@ fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
 /// 2.7 %; 64 leave a margin, for 2-25 % more rays in the reference scenes).
 const SPREAD_RAYS: usize = 64;
 
-/// Point `i` of the 4-d Kronecker sequence (generalised golden ratio), in `[0,1)^4`: its
-/// projections on each pair of axes are evenly spread.
-fn kronecker4(i: usize) -> [f64; 4] {
-    const G: f64 = 1.167_303_978_261_418_7;
-    let i = i as f64 + 1.0;
-    std::array::from_fn(|j| (0.5 + i / G.powi(j as i32 + 1)).fract())
-}
-
-/// A point of the unit square moved into the reference shape, `CORNER_INSET` off its border.
-fn spread(shape: Shape, p: DVec2) -> DVec2 {
-    let e = CORNER_INSET;
-    match shape {
-        Shape::Parallelogram => DVec2::splat(e) + p * (1.0 - 2.0 * e),
-        Shape::Triangle => {
-            let q = if p.x + p.y > 1.0 { DVec2::ONE - p } else { p };
-            let c = DVec2::splat(1.0 / 3.0);
-            c + (q - c) * (1.0 - 3.0 * e)
-        }
-    }
-}
-
 /// How far inside an element its corner probe points sit, in reference coordinates: off the
 /// element's border, where rays would graze the surfaces it meets.
 const CORNER_INSET: f64 = 0.02;
@@ -1059,9 +1038,9 @@ impl ShotContext<'_> {
         // through a gap (a window reveal under a sky, a box's side behind a parapet) is lit
         // through a strip that the rule's points and the corners all miss.
         for i in 0..SPREAD_RAYS {
-            let [a, b, c, d] = kronecker4(i);
-            let rs = spread(rroot.shape, DVec2::new(a, b));
-            let ss = spread(sroot.shape, DVec2::new(c, d));
+            let [a, b, c, d] = quadrature::kronecker4(i);
+            let rs = quadrature::inset_into(rroot.shape, DVec2::new(a, b), CORNER_INSET);
+            let ss = quadrature::inset_into(sroot.shape, DVec2::new(c, d), CORNER_INSET);
             let x = visibility_point(rroot, rmap, rs);
             let y = sroot.frame.point(smap.apply(ss));
             if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {

@@ -6,6 +6,9 @@
 //!   weight `w_a w_b (1 - a)` (times 2 to normalise), exact for total degree `<= 2n - 2`.
 //!
 //! Nodes are computed by Newton's method on the Legendre recurrence (no tables to mistype).
+//!
+//! Also the evenly spread point sets the solver's visibility checks use: the 4-d Kronecker
+//! sequence ([`kronecker4`]) and its placement in a reference shape ([`inset_into`]).
 
 use crate::domain::{Shape, StBox};
 use glam::DVec2;
@@ -105,6 +108,29 @@ pub fn zones_of_influence(n: usize) -> Vec<StBox> {
     out
 }
 
+/// Point `i` of the 4-d Kronecker sequence `frac(1/2 + (i + 1) / g^(j + 1))`, `g` the generalised
+/// golden ratio (the real root of `x^5 = x + 1`), in `[0,1)^4`: its projections on every axis and
+/// every pair of axes are evenly spread, for any number of points.
+pub fn kronecker4(i: usize) -> [f64; 4] {
+    const G: f64 = 1.167_303_978_261_418_7;
+    let i = i as f64 + 1.0;
+    std::array::from_fn(|j| (0.5 + i / G.powi(j as i32 + 1)).fract())
+}
+
+/// Point `p` of the unit square placed in the reference shape `inset` off its border: scaled into
+/// `[inset, 1 - inset]^2`, or, for the triangle, folded across its hypotenuse and drawn towards the
+/// centroid by `1 - 3 inset` (a uniform point stays uniform).
+pub fn inset_into(shape: Shape, p: DVec2, inset: f64) -> DVec2 {
+    match shape {
+        Shape::Parallelogram => DVec2::splat(inset) + p * (1.0 - 2.0 * inset),
+        Shape::Triangle => {
+            let q = if p.x + p.y > 1.0 { DVec2::ONE - p } else { p };
+            let c = DVec2::splat(1.0 / 3.0);
+            c + (q - c) * (1.0 - 3.0 * inset)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -181,6 +207,39 @@ mod tests {
                     z.min.x < p.st.x && p.st.x < z.max.x && z.min.y < p.st.y && p.st.y < z.max.y
                 );
             }
+        }
+    }
+
+    #[test]
+    fn kronecker_points_spread_over_every_pair_of_axes() {
+        // 64 points: every pair of axes puts at least one in each cell of a 4 x 4 grid, and none
+        // holds more than twice its share.
+        let points: Vec<[f64; 4]> = (0..64).map(kronecker4).collect();
+        assert!(points.iter().flatten().all(|&x| (0.0..1.0).contains(&x)));
+        for a in 0..4 {
+            for b in (a + 1)..4 {
+                let mut cells = [0usize; 16];
+                for p in &points {
+                    cells[(p[a] * 4.0) as usize * 4 + (p[b] * 4.0) as usize] += 1;
+                }
+                assert!(
+                    cells.iter().all(|&c| (1..=8).contains(&c)),
+                    "axes {a}, {b}: {cells:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn inset_points_stay_inside_their_shape() {
+        let e = 0.02;
+        for i in 0..200 {
+            let [a, b, _, _] = kronecker4(i);
+            let p = inset_into(Shape::Parallelogram, DVec2::new(a, b), e);
+            assert!(p.min_element() >= e && p.max_element() <= 1.0 - e, "{p}");
+            let t = inset_into(Shape::Triangle, DVec2::new(a, b), e);
+            // At least `e` inside each of the three sides (the hypotenuse's distance is in s + t).
+            assert!(t.x >= e && t.y >= e && t.x + t.y <= 1.0 - e, "{t}");
         }
     }
 }
