@@ -666,7 +666,7 @@ fn an_emitter_behind_which_a_walls_points_all_lie_still_lights_the_wall() {
     }
 }
 
-/// A 3 x 3 m sky panel (L_e = 1, facing down) 15 cm over a small black box (15 x 2.5 x 15 cm)
+/// A 3 x 3 m sky panel (L_e = 1, facing down) 15 cm over the base of a small black box (15 x 2.5 x 15 cm)
 /// whose front (facing -z, 30 cm from the sky's centre line) looks at a black parapet 7.5 cm high
 /// 10 cm in front of it: the front sees the sky through a strip about 22 cm deep, between the
 /// sky's rule points and its corner probes, which the parapet or the box all hide.

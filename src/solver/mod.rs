@@ -950,8 +950,8 @@ fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
 /// 2.7 %; 64 leave a margin, for 2-25 % more rays in the reference scenes).
 const SPREAD_RAYS: usize = 64;
 
-/// How far inside an element its corner probe points sit, in reference coordinates: off the
-/// element's border, where rays would graze the surfaces it meets.
+/// How far inside an element its corner probe points, and the spread rays' points, sit, in
+/// reference coordinates: off the element's border, where rays would graze the surfaces it meets.
 const CORNER_INSET: f64 = 0.02;
 
 /// The two sides of one transfer, as `ShotContext::receiver_misses_source` needs them.

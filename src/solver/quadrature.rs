@@ -215,6 +215,10 @@ mod tests {
         // 64 points: every pair of axes puts at least one in each cell of a 4 x 4 grid, and none
         // holds more than twice its share.
         let points: Vec<[f64; 4]> = (0..64).map(kronecker4).collect();
+        // The sequence's constant: the generalised golden ratio of dimension 4.
+        // Point 0 on axis 0 is frac(1/2 + 1/g), and 1/g = 0.857: it wrapped once.
+        let g = 1.0 / (kronecker4(0)[0] + 0.5);
+        assert!((g.powi(5) - g - 1.0).abs() < 1e-12, "g = {g}");
         assert!(points.iter().flatten().all(|&x| (0.0..1.0).contains(&x)));
         for a in 0..4 {
             for b in (a + 1)..4 {
