@@ -447,17 +447,24 @@ fn an_eave_receives_the_light_of_the_walls_it_overhangs_in_both_modes() {
 const SKY_Y: f64 = 1.84;
 const EAVE_Y: f64 = 1.65;
 
-fn eave_scene() -> Vec<u8> {
+/// A scene with a 3 x 3 m sky panel (L_e = 1, facing down, centred over the origin) at height
+/// `sky_y`, and a black material (returned) for the rest.
+fn under_a_sky(sky_y: f64) -> (SceneBuilder, u32) {
     let mut b = SceneBuilder::new();
     let sky = b.material([0.0; 3], [1.0; 3], false);
     let black = b.material([0.0; 3], [0.0; 3], false);
     b.quad(
         sky,
-        DVec3::new(-1.5, SKY_Y, -1.5),
+        DVec3::new(-1.5, sky_y, -1.5),
         DVec3::X * 3.0,
         DVec3::Z * 3.0,
         1,
     );
+    (b, black)
+}
+
+fn eave_scene() -> Vec<u8> {
+    let (mut b, black) = under_a_sky(SKY_Y);
     // The wall, z = -0.4, facing -z; the eave over it, facing down, 5 cm past the wall.
     b.quad(
         black,
@@ -476,9 +483,10 @@ fn eave_scene() -> Vec<u8> {
     b.to_glb()
 }
 
-/// The sky's visible form factor at wall point `x` (normal -z), by brute force: the sky sampled
-/// on a fine grid, each sample's ray tested against the eave's rectangle analytically.
-fn visible_sky_form_factor(x: DVec3) -> f64 {
+/// The form factor at point `x` of a wall facing -z of a 3 x 3 m sky panel (facing down, centred
+/// over the origin) at height `sky_y`, by brute force: the sky on a fine grid, without the samples
+/// `q` that `blocked(x, q)` says are hidden.
+fn wall_sky_form_factor(x: DVec3, sky_y: f64, blocked: impl Fn(DVec3, DVec3) -> bool) -> f64 {
     let n = 600;
     let cell = 9.0 / (n * n) as f64;
     let mut f = 0.0;
@@ -486,24 +494,48 @@ fn visible_sky_form_factor(x: DVec3) -> f64 {
         for j in 0..n {
             let q = DVec3::new(
                 -1.5 + 3.0 * (i as f64 + 0.5) / n as f64,
-                SKY_Y,
+                sky_y,
                 -1.5 + 3.0 * (j as f64 + 0.5) / n as f64,
             );
             let d = q - x;
             let r2 = d.length_squared();
             let (cos_x, cos_q) = (-d.z / r2.sqrt(), d.y / r2.sqrt());
-            if cos_x <= 0.0 || cos_q <= 0.0 {
-                continue;
-            }
-            // Where the ray crosses the eave's plane: inside its rectangle, it is blocked.
-            let c = x + d * ((EAVE_Y - x.y) / d.y);
-            if c.x.abs() <= 0.45 && c.z.abs() <= 0.45 {
+            if cos_x <= 0.0 || cos_q <= 0.0 || blocked(x, q) {
                 continue;
             }
             f += cos_x * cos_q / (std::f64::consts::PI * r2) * cell;
         }
     }
     f
+}
+
+/// The sky's visible form factor at wall point `x` (normal -z) under the eave, whose rectangle
+/// each sample's ray is tested against analytically.
+fn visible_sky_form_factor(x: DVec3) -> f64 {
+    wall_sky_form_factor(x, SKY_Y, |x, q| {
+        // Where the ray crosses the eave's plane: inside its rectangle, it is blocked.
+        let c = x + (q - x) * ((EAVE_Y - x.y) / (q.y - x.y));
+        c.x.abs() <= 0.45 && c.z.abs() <= 0.45
+    })
+}
+
+/// `glb` solved for irradiance (`H / pi`) at `order`, extended, with or without the node-sum check.
+fn solve_irradiance(glb: &[u8], order: usize, node_sums: bool) -> (Prepared, Solution) {
+    let scene = load_scene(glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
+    let params = SolverParams {
+        order,
+        node_sums,
+        quantity: wavrad::solver::Quantity::Irradiance,
+        ..Default::default()
+    };
+    bake(
+        &scene,
+        DomainMode::Extended,
+        params,
+        &AtomicBool::new(false),
+        &mut |_| {},
+    )
+    .expect("bakes")
 }
 
 /// RMS and worst error of the solved `H / pi` (the visible form factor, L_e = 1) against
@@ -515,21 +547,7 @@ fn eave_shadow_errors(
     points: &[DVec3],
     exact: &[f64],
 ) -> (f64, f64) {
-    let scene = load_scene(glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
-    let params = SolverParams {
-        order,
-        node_sums,
-        quantity: wavrad::solver::Quantity::Irradiance,
-        ..Default::default()
-    };
-    let (prepared, sol) = bake(
-        &scene,
-        DomainMode::Extended,
-        params,
-        &AtomicBool::new(false),
-        &mut |_| {},
-    )
-    .expect("bakes");
+    let (prepared, sol) = solve_irradiance(glb, order, node_sums);
     let probes: Vec<ProbePoint> = points
         .iter()
         .map(|p| ProbePoint {
@@ -666,26 +684,18 @@ fn an_emitter_behind_which_a_walls_points_all_lie_still_lights_the_wall() {
     }
 }
 
-/// A 3 x 3 m sky panel (L_e = 1, facing down) 15 cm over the base of a small black box (15 x 2.5 x 15 cm)
-/// whose front (facing -z, 30 cm from the sky's centre line) looks at a black parapet 7.5 cm high
-/// 10 cm in front of it: the front sees the sky through a strip about 22 cm deep, between the
-/// sky's rule points and its corner probes, which the parapet or the box all hide.
+/// A 3 x 3 m sky panel (L_e = 1, facing down) 15 cm over the base of a small black box
+/// (15 x 2.5 x 15 cm) whose front (facing -z, 30 cm from the sky's centre line) looks at a black
+/// parapet 7.5 cm high 10 cm in front of it: the front sees the sky through a strip about 22 cm
+/// deep, between the sky's rule points and its corner probes, which the parapet or the box all
+/// hide.
 const STRIP_SKY_Y: f64 = 0.15;
 const BOX_FRONT_Z: f64 = 0.3;
 const PARAPET_Z: f64 = 0.2;
 const PARAPET_TOP: f64 = 0.075;
 
 fn parapet_scene() -> Vec<u8> {
-    let mut b = SceneBuilder::new();
-    let sky = b.material([0.0; 3], [1.0; 3], false);
-    let black = b.material([0.0; 3], [0.0; 3], false);
-    b.quad(
-        sky,
-        DVec3::new(-1.5, STRIP_SKY_Y, -1.5),
-        DVec3::X * 3.0,
-        DVec3::Z * 3.0,
-        1,
-    );
+    let (mut b, black) = under_a_sky(STRIP_SKY_Y);
     // The box: front (the face under test), top, back and sides, all facing out.
     let (o, w, h, d) = (
         DVec3::new(-0.075, 0.0, BOX_FRONT_Z),
@@ -709,36 +719,16 @@ fn parapet_scene() -> Vec<u8> {
     b.to_glb()
 }
 
-/// The sky's form factor at point `x` of the box's front (normal -z) over the parapet, by brute
-/// force: the sky on a fine grid, each sample's ray tested against the parapet analytically.
+/// The sky's form factor at point `x` of the box's front (normal -z) over the parapet, each
+/// sample's ray tested against the parapet analytically.
 fn sky_over_the_parapet(x: DVec3) -> f64 {
-    let n = 600;
-    let cell = 9.0 / (n * n) as f64;
-    let mut f = 0.0;
-    for i in 0..n {
-        for j in 0..n {
-            let q = DVec3::new(
-                -1.5 + 3.0 * (i as f64 + 0.5) / n as f64,
-                STRIP_SKY_Y,
-                -1.5 + 3.0 * (j as f64 + 0.5) / n as f64,
-            );
-            let d = q - x;
-            let r2 = d.length_squared();
-            let (cos_x, cos_q) = (-d.z / r2.sqrt(), d.y / r2.sqrt());
-            if cos_x <= 0.0 || cos_q <= 0.0 {
-                continue;
-            }
-            // Beyond the parapet: the ray crosses its plane below its top, it is blocked.
-            if q.z < PARAPET_Z {
-                let c = x + d * ((PARAPET_Z - x.z) / d.z);
-                if c.y <= PARAPET_TOP && c.x.abs() <= 1.5 {
-                    continue;
-                }
-            }
-            f += cos_x * cos_q / (std::f64::consts::PI * r2) * cell;
+    wall_sky_form_factor(x, STRIP_SKY_Y, |x, q| {
+        // Beyond the parapet: the ray crosses its plane below its top, it is blocked.
+        q.z < PARAPET_Z && {
+            let c = x + (q - x) * ((PARAPET_Z - x.z) / (q.z - x.z));
+            c.y <= PARAPET_TOP && c.x.abs() <= 1.5
         }
-    }
-    f
+    })
 }
 
 #[test]
@@ -757,21 +747,8 @@ fn a_small_face_sees_a_large_sky_through_a_strip_over_a_parapet() {
         })
         .sum::<f64>()
         / (nx * ny) as f64;
-    let scene = load_scene(&glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
     for order in [1, 2, 3] {
-        let params = SolverParams {
-            order,
-            quantity: wavrad::solver::Quantity::Irradiance,
-            ..Default::default()
-        };
-        let (_, sol) = bake(
-            &scene,
-            DomainMode::Extended,
-            params,
-            &AtomicBool::new(false),
-            &mut |_| {},
-        )
-        .expect("bakes");
+        let (_, sol) = solve_irradiance(&glb, order, true);
         let front = sol
             .roots
             .iter()
