@@ -2,13 +2,18 @@
 //! is built from a shuffled order (the trapezoidal map's segment insertion, the order in which
 //! `visibility::bounding_planes` tries the scene's points) is reproducible run to run.
 //!
-//! Owns [`shuffle`]. Invariant: the same seed and length give the same permutation.
+//! Owns [`shuffle`] and its generator [`SplitMix64`] (the crate's one pseudo-random generator;
+//! the domain's property tests draw their polygons from it too). Invariant: the same seed and
+//! length give the same permutation.
 
 /// SplitMix64: a tiny, good-enough generator for a shuffle.
-struct SplitMix64(u64);
+pub(crate) struct SplitMix64(u64);
 
 impl SplitMix64 {
-    fn next(&mut self) -> u64 {
+    pub(crate) fn new(seed: u64) -> Self {
+        SplitMix64(seed)
+    }
+    pub(crate) fn next(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
@@ -23,7 +28,7 @@ impl SplitMix64 {
 
 /// Permutes `items` in place, the permutation fixed by `seed`.
 pub fn shuffle<T>(items: &mut [T], seed: u64) {
-    let mut rng = SplitMix64(seed);
+    let mut rng = SplitMix64::new(seed);
     for i in (1..items.len()).rev() {
         items.swap(i, rng.below(i + 1));
     }

@@ -8,6 +8,7 @@ use super::hull::convex_hull;
 use super::parallelogram::{min_area_parallelogram, NEAR_MINIMAL_REL};
 use super::predicates::{on_segment, orient, signed_area};
 use super::trapezoidal_map::{Location, TrapezoidalMap};
+use crate::shuffle::SplitMix64;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngSeed};
@@ -21,20 +22,17 @@ fn config(cases: u32, seed: u64) -> Config {
     }
 }
 
-/// A small deterministic generator for the polygons (proptest drives its seed).
-struct Rng(u64);
+/// A small deterministic generator for the polygons (proptest drives its seed): the crate's
+/// SplitMix64, with the draws the polygons need.
+struct Rng(SplitMix64);
 
 impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
+    fn new(seed: u64) -> Self {
+        Rng(SplitMix64::new(seed))
     }
     /// Uniform in [0, 1).
     fn f(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+        (self.0.next() >> 11) as f64 / (1u64 << 53) as f64
     }
     fn range(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.f()
@@ -68,7 +66,7 @@ fn random_polygon(
     n_holes: usize,
     snap: bool,
 ) -> Option<Vec<Vec<DVec2>>> {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let c = DVec2::splat(0.5);
     let mut rings = vec![star(&mut rng, c, n_outer, 0.25, 0.48)];
     // With >= 5 vertices the outer star contains the disc of radius 0.25 * cos(0.9 * TAU / 5).
@@ -313,7 +311,7 @@ proptest! {
     ) {
         let Some(rings) = random_polygon(seed, n_outer, n_holes, snap) else { return Ok(()) };
         let map = TrapezoidalMap::new_checked(&rings).expect("a valid polygon has a map");
-        let mut rng = Rng(seed ^ 0xabcd);
+        let mut rng = Rng::new(seed ^ 0xabcd);
         for p in query_points(&mut rng, &rings, 60) {
             let twin = twin_locate(&rings, p);
             prop_assert_eq!(map.locate(p), twin, "point {:?}", p);
@@ -332,7 +330,7 @@ proptest! {
     ) {
         let Some(rings) = random_polygon(seed, n_outer, n_holes, snap) else { return Ok(()) };
         let map = TrapezoidalMap::new(&rings).expect("a valid polygon has a map");
-        let mut rng = Rng(seed ^ 0x1234);
+        let mut rng = Rng::new(seed ^ 0x1234);
         let mut total = 0.0;
         let n = 8;
         for i in 0..n {
@@ -411,7 +409,7 @@ proptest! {
     fn parallelogram_is_near_minimal_and_closest_to_square(
         seed in any::<u64>(), n in 3usize..30, kind in 0usize..3
     ) {
-        let mut rng = Rng(seed);
+        let mut rng = Rng::new(seed);
         let affine = random_affine(&mut rng);
         let points: Vec<DVec2> = match kind {
             0 => (0..n).map(|_| DVec2::new(rng.f(), rng.f())).collect(),
@@ -462,7 +460,7 @@ proptest! {
         seed in any::<u64>(), n_outer in 3usize..30, n_holes in 0usize..5
     ) {
         let Some(unit_rings) = random_polygon(seed, n_outer, n_holes, false) else { return Ok(()) };
-        let mut rng = Rng(seed ^ 0x77);
+        let mut rng = Rng::new(seed ^ 0x77);
         let affine = random_affine(&mut rng);
         let world: Vec<Vec<DVec2>> = unit_rings.iter().map(|r| r.iter().map(|p| affine(*p)).collect()).collect();
         let domain = ExtendedDomain::from_plane_polygon(&world[0], &world[1..]).expect("domain");
@@ -514,7 +512,7 @@ proptest! {
         seed in any::<u64>(), n_outer in 3usize..30, n_holes in 0usize..5
     ) {
         let Some(rings) = random_polygon(seed, n_outer, n_holes, false) else { return Ok(()) };
-        let mut rng = Rng(seed ^ 0x99);
+        let mut rng = Rng::new(seed ^ 0x99);
         // A random plane: an orthonormal basis (e1, e2, n) and an origin.
         let n = DVec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0)).normalize_or(DVec3::Z);
         let (e1, e2) = n.any_orthonormal_pair();
@@ -874,7 +872,7 @@ fn an_empty_map_is_all_outside_and_paths_are_bounded_by_the_depth() {
     assert_eq!(map.segment_count(), edges);
     // 3n + 1 trapezoids at most (de Berg et al., lemma 6.2).
     assert!(map.trapezoid_count() <= 3 * edges + 1);
-    let mut rng = Rng(3);
+    let mut rng = Rng::new(3);
     for p in query_points(&mut rng, &rings, 200) {
         let len = map.search_path_length(p);
         assert!(len >= 1 && len <= map.depth(), "{len} > {}", map.depth());
@@ -901,7 +899,7 @@ fn large_maps_locate_like_the_twin_and_count_their_work() {
         assert_eq!(map.build_steps(), stats.steps());
         assert!(map.node_count() <= 8 * map.segment_count());
         assert!(map.depth() > 20, "depth {}", map.depth());
-        let mut rng = Rng(seed);
+        let mut rng = Rng::new(seed);
         for p in query_points(&mut rng, &rings, 1500) {
             assert_eq!(map.locate(p), twin_locate(&rings, p), "point {p:?}");
             assert!(map.search_path_length(p) <= map.depth());
@@ -950,7 +948,7 @@ proptest! {
     fn map_refuses_or_answers_right_on_arbitrary_rings(
         seed in any::<u64>(), n_rings in 1usize..4, n in 3usize..9, grid in 2.0f64..9.0
     ) {
-        let mut rng = Rng(seed);
+        let mut rng = Rng::new(seed);
         let grid = grid.floor();
         let rings: Vec<Vec<DVec2>> = (0..n_rings)
             .map(|_| (0..n).map(|_| (DVec2::new(rng.f(), rng.f()) * grid).floor() / grid).collect())
