@@ -1016,20 +1016,24 @@ impl ShotContext<'_> {
         let sroot = &self.roots[self.source_root];
         let (n_r, n_s) = (rroot.normal, sroot.normal);
         let ignore = [sroot.face.0, rroot.face.0];
+        // Does the ray from receiver point `x` (its stand-in: it receives as one, see `transfer`)
+        // to source point `ss` disagree? Only pairs that exchange light count; the source's
+        // stand-in (`stand_in`, O(n) in the face's edges off the face) is asked for only then.
+        let disagrees = |x: DVec3, ss: DVec2, stand_in: &mut dyn FnMut() -> DVec3| {
+            let y = sroot.frame.point(smap.apply(ss));
+            (x - y).dot(n_s) > 0.0
+                && (y - x).dot(n_r) > 0.0
+                && self.visibility.visible(x, stand_in(), ignore) != quadrature_visible
+        };
         let source_corners = corner_probe_points(sroot.shape);
-        // Source stand-ins are computed when first needed (O(n) in the face's edges off the face).
+        // The corners' stand-ins serve every receiver corner: computed once, when first needed.
         let mut source_vis: [Option<DVec3>; 5] = [None; 5];
         for &rs in corner_probe_points(rroot.shape) {
-            // The receiver's point receives as its stand-in (see `transfer`).
             let x = visibility_point(rroot, rmap, rs);
             for (j, &ss) in source_corners.iter().enumerate() {
-                let y = sroot.frame.point(smap.apply(ss));
-                // Only pairs that exchange light count.
-                if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
-                    continue;
-                }
-                let yv = *source_vis[j].get_or_insert_with(|| visibility_point(sroot, smap, ss));
-                if self.visibility.visible(x, yv, ignore) != quadrature_visible {
+                let mut stand_in =
+                    || *source_vis[j].get_or_insert_with(|| visibility_point(sroot, smap, ss));
+                if disagrees(x, ss, &mut stand_in) {
                     return true;
                 }
             }
@@ -1037,21 +1041,13 @@ impl ShotContext<'_> {
         // Then pairs spread over both elements: a large source seen from a small receiver
         // through a gap (a window reveal under a sky, a box's side behind a parapet) is lit
         // through a strip that the rule's points and the corners all miss.
-        for i in 0..SPREAD_RAYS {
+        (0..SPREAD_RAYS).any(|i| {
             let [a, b, c, d] = quadrature::kronecker4(i);
             let rs = quadrature::inset_into(rroot.shape, DVec2::new(a, b), CORNER_INSET);
             let ss = quadrature::inset_into(sroot.shape, DVec2::new(c, d), CORNER_INSET);
             let x = visibility_point(rroot, rmap, rs);
-            let y = sroot.frame.point(smap.apply(ss));
-            if (x - y).dot(n_s) <= 0.0 || (y - x).dot(n_r) <= 0.0 {
-                continue;
-            }
-            let yv = visibility_point(sroot, smap, ss);
-            if self.visibility.visible(x, yv, ignore) != quadrature_visible {
-                return true;
-            }
-        }
-        false
+            disagrees(x, ss, &mut || visibility_point(sroot, smap, ss))
+        })
     }
 }
 
