@@ -331,11 +331,17 @@ fn print_faces(
         writeln!(out, "{}", crate::output::faces_json(faces, surfaces))?;
         return out.flush();
     }
+    for w in &faces.warnings {
+        tracing::warn!("{w}");
+    }
     writeln!(
         out,
-        "{} triangles in, {} degenerate dropped, {} faces out",
+        "{} triangles in, {} degenerate dropped, {} duplicates dropped, {} cut where they overlap, {} back-to-back pairs kept, {} faces out",
         faces.triangles_in,
         faces.degenerate_dropped,
+        faces.duplicates_dropped,
+        faces.overlaps_cut,
+        faces.back_to_back_kept,
         faces.faces.len()
     )?;
     for f in &faces.faces {

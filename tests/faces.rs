@@ -353,9 +353,11 @@ fn holes_touching_the_outer_ring_or_each_other_at_a_vertex() {
 }
 
 #[test]
-fn overlapping_coplanar_triangles_are_split_back_not_merged_invalid() {
+fn overlapping_coplanar_triangles_are_cut_not_merged_invalid() {
     // A flat spiral strip that winds more than once around: connected through shared edges, but
-    // its second turn overlaps the first, so its boundary crosses itself.
+    // its second turn overlaps the first, so its boundary would cross itself. The first turn loses
+    // what the second (listed later) covers (every piece of surface counted once), and the faces
+    // are valid.
     let mut tris = Vec::new();
     let at = |k: usize, outer: bool| {
         let a = k as f64 * 0.5;
@@ -372,8 +374,18 @@ fn overlapping_coplanar_triangles_are_split_back_not_merged_invalid() {
             || scene.triangles.iter().all(|t| t.cross().z > 0.0)
     );
     let f = merged(&scene);
-    assert_eq!(f.groups_split, 1);
-    assert_eq!(f.faces.len(), tris.len());
+    println!(
+        "spiral: {} faces, {} split, {} cut, {} m2 removed",
+        f.faces.len(),
+        f.groups_split,
+        f.overlaps_cut,
+        f.overlap_area_removed_m2
+    );
+    assert!(f.overlaps_cut > 0);
+    assert_eq!(f.duplicates_dropped, 0);
+    let sum: f64 = scene.triangles.iter().map(|t| t.area()).sum();
+    assert!(f.overlap_area_removed_m2 > 0.1 * sum);
+    assert!((total_area(&f) - (sum - f.overlap_area_removed_m2)).abs() < 1e-9 * sum);
 }
 
 #[test]
@@ -417,9 +429,14 @@ fn non_manifold_edges_split_faces_instead_of_failing() {
         &[[0, 1, 2]],
     );
     let f = merged(&load(&b.to_glb()));
-    // The new triangle overlaps floor triangle (0, 2, 3): three coplanar triangles on one edge.
-    assert_eq!(f.faces.len(), 4);
+    // The new triangle overlaps floor triangle (0, 2, 3), which loses that part (the new one is
+    // listed later): the floor, counted once, is one face again beside the wall.
+    assert_eq!(f.overlaps_cut, 1);
+    assert_eq!(f.faces.len(), 2);
     assert_eq!(f.groups_split, 0);
+    let up: Vec<_> = f.faces.iter().filter(|f| f.normal.z > 0.999).collect();
+    assert_eq!(up.len(), 1);
+    assert!((up[0].area_m2 - 1.0).abs() < 1e-9, "{}", up[0].area_m2);
 }
 
 #[test]
@@ -639,6 +656,8 @@ fn every_shared_scene_merges_into_valid_faces_with_its_area() {
             .map(|t| t.area())
             .filter(|&a| a > DEGENERATE_AREA_REL * diag * diag)
             .sum();
+        // Less what overlapping coplanar surfaces lost (every piece of surface counted once).
+        let expected = expected - f.overlap_area_removed_m2;
         let got = total_area(&f);
         assert!(
             (got - expected).abs() <= 1e-9 * expected,
@@ -812,6 +831,13 @@ proptest! {
             tris3.push([0, 1, 2].map(|k| positions[tri[(k + r) % 3]]));
         }
         let scene = scene_of(&tris3);
+        // Skip the (rare) triangulations with an ear thinner than the weld tolerance: the merge
+        // drops such slivers as degenerate on purpose, and the face's area loses them.
+        let weld = wavrad::faces::WELD_REL * scene.diagonal();
+        prop_assume!(tris3.iter().all(|[a, b, c]| {
+            let longest = a.distance(*b).max(b.distance(*c)).max(c.distance(*a));
+            (*b - *a).cross(*c - *a).length() / longest > weld
+        }));
         let f = merge_planar_faces(&scene);
         let problems = validate_faces(&f);
         prop_assert!(problems.is_empty(), "{:?}", problems);

@@ -10,6 +10,9 @@ use std::time::{Duration, Instant};
 use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
 use wavrad::service::{Server, ServiceConfig};
 
+mod common;
+use common::multipart;
+
 /// A fresh, empty data directory for one test.
 fn data_dir(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("http-{name}"));
@@ -939,25 +942,6 @@ async fn deleting_and_retention_remove_files() {
         .unwrap()
         .next()
         .is_none());
-}
-
-/// A `multipart/form-data` body from (name, file name, content type, bytes) parts.
-fn multipart(parts: &[(&str, &str, &str, &[u8])]) -> (String, Vec<u8>) {
-    let boundary = "wavrad-test-boundary-7d1f";
-    let mut body = Vec::new();
-    for (name, file, content_type, bytes) in parts {
-        body.extend_from_slice(
-            format!(
-                "--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"; \
-                 filename=\"{file}\"\r\nContent-Type: {content_type}\r\n\r\n"
-            )
-            .as_bytes(),
-        );
-        body.extend_from_slice(bytes);
-        body.extend_from_slice(b"\r\n");
-    }
-    body.extend_from_slice(format!("--{boundary}--\r\n").as_bytes());
-    (format!("multipart/form-data; boundary={boundary}"), body)
 }
 
 /// A .gltf with an external buffer is solved when the buffer is uploaded as a part named by its

@@ -27,6 +27,7 @@ pub mod hull;
 pub mod mask;
 pub mod parallelogram;
 pub mod predicates;
+pub mod reflectance;
 pub mod trapezoidal_map;
 
 #[cfg(test)]
@@ -35,6 +36,7 @@ mod tests;
 pub use coverage::{Coverage, ElementStatus, StBox};
 pub use extended::{DomainError, ExtendedDomain};
 pub use mask::FaceMask;
+pub use reflectance::{FaceTexture, ReflectanceMap};
 pub use trapezoidal_map::{Location, MapError, TrapezoidalMap};
 
 use crate::faces::{Face, FaceId, FaceKind, FaceSet};
@@ -101,9 +103,14 @@ pub struct ElementRoot {
     /// `None` for native triangles and parallelograms, which their element fills.
     pub mask: Option<FaceMask>,
     pub material: u32,
+    /// Reflectance: the material's, or for a textured face its mean over the root's face.
     pub rho: Rgb,
-    /// Emitted radiosity E = pi * L_e on this side, W/m^2.
+    /// Emitted radiosity E = pi * L_e on this side, W/m^2 (for a textured emitter, its mean over
+    /// the root's face).
     pub exitance: Rgb,
+    /// A face whose reflectance varies (a texture of several colours): its values over the root.
+    /// `None` when `rho` holds everywhere.
+    pub reflectance: Option<Arc<ReflectanceMap>>,
 }
 
 impl ElementRoot {
@@ -306,7 +313,13 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
     let inset = mask::VISIBILITY_INSET_REL * scene.diagonal();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
-        let exitance = material.emission.map(|e| std::f64::consts::PI * e);
+        let texture = FaceTexture::new(scene, faces, face);
+        // A texture of one colour over the whole face is exact as constants.
+        let (rho, emission) = match texture.as_ref().and_then(FaceTexture::uniform) {
+            Some(values) => values,
+            None => (material.rho, material.emission),
+        };
+        let texture = texture.filter(|t| t.uniform().is_none()).map(Arc::new);
         let extended = match face.kind {
             FaceKind::Extended => ExtendedDomain::new(&face.outer, &face.holes, face.normal)
                 .ok()
@@ -340,6 +353,18 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                 // An extended root's face area from its rings (what the mask's coverage
                 // integrates to), so powers and means agree with coverage.
                 let face_area = mask.as_ref().map_or(area, |m| m.domain().face_area_m2());
+                let varying = texture.as_ref().and_then(|t| {
+                    ReflectanceMap::new(t.clone(), &frame, |st| match (&mask, shape) {
+                        (Some(m), _) => m.contains(st),
+                        (None, Shape::Triangle) => st.x + st.y <= 1.0,
+                        (None, Shape::Parallelogram) => true,
+                    })
+                });
+                let (rho, emission, reflectance) = match varying {
+                    Some((map, emission)) => (map.mean, emission, Some(Arc::new(map))),
+                    None => (rho, emission, None),
+                };
+                let exitance = emission.map(|e| std::f64::consts::PI * e);
                 domains.roots.push(ElementRoot {
                     face: face.id,
                     side,
@@ -350,8 +375,9 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                     face_area_m2: face_area,
                     mask,
                     material: face.material,
-                    rho: material.rho,
+                    rho,
                     exitance,
+                    reflectance,
                 });
             };
             match (face.kind, &masked) {

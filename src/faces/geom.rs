@@ -96,6 +96,23 @@ impl Projection {
         }
     }
 
+    /// The point of the plane `normal . p = offset` whose projection is `q` (the inverse of
+    /// [`Projection::apply`] on that plane; this projection must be the plane's, or one whose
+    /// dropped axis the normal is not perpendicular to).
+    pub fn lift(&self, q: DVec2, normal: DVec3, offset: f64) -> DVec3 {
+        let (u, v) = if self.flip { (q.y, q.x) } else { (q.x, q.y) };
+        let mut p = DVec3::ZERO;
+        let (iu, iv) = match self.axis {
+            0 => (1, 2),
+            1 => (2, 0),
+            _ => (0, 1),
+        };
+        p[iu] = u;
+        p[iv] = v;
+        p[self.axis] = (offset - normal[iu] * u - normal[iv] * v) / normal[self.axis];
+        p
+    }
+
     /// Projected area / true area for a plane with unit normal `n`: `|n_axis|` (at least 1/sqrt 3).
     pub fn area_scale(&self, n: DVec3) -> f64 {
         n[self.axis].abs()
@@ -203,6 +220,12 @@ mod tests {
             let area = signed_area(&flat);
             assert!(area > 0.0, "normal {n}: {area}");
             assert!((area - 0.5 * proj.area_scale(n)).abs() < 1e-12);
+            // Lifting a projected point back onto the plane gives the point.
+            let offset = n.dot(pts[0]) + 0.25;
+            for &p in &pts {
+                let p = p + n * 0.25;
+                assert!(proj.lift(proj.apply(p), n, offset).distance(p) < 1e-12);
+            }
         }
     }
 

@@ -18,6 +18,11 @@
 //! degenerate triangles are in no face and counted in `degenerate_dropped`. Units: metres, world
 //! frame. This module knows nothing of glTF, element roots or the solver.
 //!
+//! Before welding, [`contact`] cuts the triangles along contact lines and [`overlap`] counts every
+//! piece of surface once: exact duplicates are dropped, coplanar pieces sharing a radiosity side
+//! are cut where they overlap (the one listed later in the file wins), back-to-back coincident
+//! pieces are kept; `duplicates_dropped`, `overlaps_cut`, `back_to_back_kept` and `warnings` say so.
+//!
 //! Submodules: `weld` (vertex ids), `adjacency` (T-junction splits, neighbours), `rings` (boundary
 //! walking, collinear removal), [`validate`], [`triangulate`] (ear clipping with holes), `geom`
 //! (exact projection and predicates).
@@ -25,6 +30,7 @@
 mod adjacency;
 pub mod contact;
 mod geom;
+pub mod overlap;
 mod rings;
 pub mod triangulate;
 pub mod validate;
@@ -106,6 +112,24 @@ pub struct FaceSet {
     pub groups_split: usize,
     /// Edges split at vertices lying on them (T-junctions, collinear overlaps).
     pub edges_split: usize,
+    /// Scene triangles with a piece dropped as an exact duplicate ([`overlap`]: the same corners
+    /// within the weld tolerance, sharing a radiosity side, of a piece that wins: the one listed
+    /// later in the file, or a double-sided one over a single-sided one).
+    pub duplicates_dropped: usize,
+    /// Scene triangles with a piece that lost part or all of its area to coplanar pieces sharing a
+    /// radiosity side that win ([`overlap`]; duplicates not counted): decals, panels, z-fighting
+    /// copies.
+    pub overlaps_cut: usize,
+    /// Pairs of scene triangles with the same corners (within the weld tolerance) facing opposite
+    /// ways, both single-sided (a zero-thickness wall): both sides are real and both are kept.
+    /// Back-to-back pieces that only partly coincide are kept too, and not counted.
+    pub back_to_back_kept: usize,
+    /// Area taken away by dropped duplicates and overlap cuts, m^2 (the faces' area is the
+    /// non-degenerate triangles' minus this).
+    pub overlap_area_removed_m2: f64,
+    /// What the user should hear about the faces (duplicates dropped, overlaps cut, with the
+    /// places of their triangles).
+    pub warnings: Vec<String>,
 }
 
 /// A triangle whose area is below this fraction of the squared scene diagonal is degenerate.
@@ -187,29 +211,39 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
         angle_rad: NORMAL_ANGLE_RAD,
     };
     let min_area = DEGENERATE_AREA_REL * diag * diag;
-    let cut = contact::cut_at_contacts(
+    let double_sided = |t: &crate::scene::Triangle| {
+        scene
+            .materials
+            .get(t.material as usize)
+            .is_some_and(|m| m.double_sided)
+    };
+    let cut = contact::cut_at_contacts(&scene.triangles, double_sided, &tol, diag, min_area);
+    // Every piece of surface counted once: duplicates dropped, overlaps cut.
+    let over = overlap::resolve_overlaps(
         &scene.triangles,
-        |t| {
-            scene
-                .materials
-                .get(t.material as usize)
-                .is_some_and(|m| m.double_sided)
-        },
+        cut.pieces,
+        cut.source,
+        double_sided,
         &tol,
         diag,
         min_area,
     );
-    let n = cut.pieces.len();
+    let n = over.pieces.len();
     let mut set = FaceSet {
         faces: Vec::new(),
         triangles_in: scene.triangles.len(),
         degenerate_dropped: 0,
         face_of_triangle: vec![None; n],
-        piece_source: cut.source,
+        piece_source: over.source,
         triangles_cut: cut.triangles_cut,
         tolerance_m: tol.length_m,
         groups_split: 0,
         edges_split: 0,
+        duplicates_dropped: over.duplicates_dropped,
+        overlaps_cut: over.overlaps_cut,
+        back_to_back_kept: over.back_to_back_kept,
+        overlap_area_removed_m2: over.area_removed_m2,
+        warnings: over.warnings,
     };
     if !(diag > 0.0 && diag.is_finite()) {
         set.degenerate_dropped = n;
@@ -217,11 +251,13 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
     }
     // From here on, "triangles" are the pieces.
     let scene = &Scene {
-        triangles: cut.pieces,
+        triangles: over.pieces,
         materials: scene.materials.clone(),
         lights: Vec::new(),
         bounds: scene.bounds,
         warnings: Vec::new(),
+        textures: Vec::new(),
+        texcoords: Vec::new(),
     };
     let welded = weld::weld(&scene.triangles, tol.length_m);
 
@@ -566,12 +602,16 @@ mod tests {
     }
 
     #[test]
-    fn duplicated_coplanar_triangles_stay_separate_faces() {
-        // Two copies of one triangle plus a neighbour: the shared edge is non-manifold.
+    fn duplicated_coplanar_triangles_are_counted_once() {
+        // Two copies of one triangle plus a neighbour: the earlier copy is dropped (the surface is
+        // counted once), and the later one merges with the neighbour.
         let a = [p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0)];
         let b = [p(0.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)];
         let f = merge_planar_faces(&scene_of(&[a, a, b]));
-        assert_eq!(f.faces.len(), 3);
+        assert_eq!(f.duplicates_dropped, 1);
+        assert_eq!(f.piece_source, vec![1, 2]);
+        assert_eq!(f.faces.len(), 1);
+        assert_eq!(f.faces[0].kind, FaceKind::Parallelogram);
         assert!(validate_faces(&f).is_empty(), "{:?}", validate_faces(&f));
     }
 

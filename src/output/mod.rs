@@ -435,6 +435,7 @@ pub fn write_outputs(
         .collect();
     let stats = &solution.stats;
     let mut warnings = scene.warnings.clone();
+    warnings.extend(prepared.faces.warnings.iter().cloned());
     // Extended faces solved on their domain, and those that fell back to their triangles.
     let extended_faces = prepared
         .faces
@@ -484,6 +485,9 @@ pub fn write_outputs(
             "node_sum_splits": stats.node_sum_splits,
             "extended_faces": extended_faces, "extended_faces_on_domain": masked_faces.len(),
             "extended_faces_tessellated": extended_tessellated,
+            "duplicates_dropped": prepared.faces.duplicates_dropped,
+            "overlaps_cut": prepared.faces.overlaps_cut,
+            "back_to_back_kept": prepared.faces.back_to_back_kept,
             "texels_per_meter": atlas.texels_per_meter,
         },
         "faces": faces,
@@ -515,6 +519,8 @@ pub fn faces_json(faces: &FaceSet, surfaces: &[Surface]) -> Value {
         .collect();
     json!({"triangles_in": faces.triangles_in, "degenerate_dropped": faces.degenerate_dropped,
         "triangles_cut_at_contacts": faces.triangles_cut,
+        "duplicates_dropped": faces.duplicates_dropped, "overlaps_cut": faces.overlaps_cut,
+        "back_to_back_kept": faces.back_to_back_kept,
         "faces_out": faces.faces.len(), "faces": list})
 }
 

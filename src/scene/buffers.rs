@@ -83,7 +83,7 @@ pub(crate) fn load_buffers(
     }
 }
 
-fn read_uri(uri: &str, external: &ExternalFiles) -> Result<Vec<u8>, String> {
+pub(crate) fn read_uri(uri: &str, external: &ExternalFiles) -> Result<Vec<u8>, String> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let Some((header, payload)) = rest.split_once(',') else {
             return Err("data URI has no ',' separating header and payload".into());

@@ -4,12 +4,20 @@
 //! accessor reads go through bounds-checked readers, node graphs are walked with a visited set
 //! (cycles are reported, not followed), and the whole parse runs under `catch_unwind` as a last line.
 
-use super::buffers::load_buffers;
 pub use super::buffers::ExternalFiles;
+use super::buffers::{load_buffers, read_uri};
 use super::error::{Problem, SceneError};
-use super::{LightKind, Material, PunctualLight, Scene, Triangle, TriangleSource};
-use glam::{DMat4, DVec3};
+use super::texture::{dimensions, Texture, TextureSlot, UvTransform, Wrap};
+use super::{
+    LightKind, Material, PunctualLight, Scene, Triangle, TriangleSource, TriangleTexcoords,
+};
+use glam::{DMat4, DVec2, DVec3};
+use rayon::prelude::*;
 use std::path::Path;
+
+/// Most texels all of a scene's base colour and emissive textures may hold together (a limit on
+/// the memory an upload can claim: 12 bytes a texel once decoded).
+pub const MAX_SCENE_TEXELS: u64 = 1 << 26;
 
 /// Deepest node nesting followed; deeper is reported as a problem (protects the stack).
 const MAX_NODE_DEPTH: usize = 256;
@@ -156,6 +164,27 @@ fn check_accessor_indices(root: &gltf::json::Root) -> Result<(), SceneError> {
                     ));
                 }
             }
+            for (semantic, &index) in &primitive.attributes {
+                let Checked::Valid(gltf::json::mesh::Semantic::TexCoords(set)) = semantic else {
+                    continue;
+                };
+                let Some(a) = accessor(index) else { continue };
+                let ok = matches!(a.type_, Checked::Valid(Type::Vec2))
+                    && match &a.component_type {
+                        Checked::Valid(c) => {
+                            c.0 == ComponentType::F32
+                                || (a.normalized
+                                    && matches!(c.0, ComponentType::U8 | ComponentType::U16))
+                        }
+                        _ => false,
+                    };
+                if !ok {
+                    bad.push(format!(
+                        "{place}.attributes.TEXCOORD_{set}: must be a VEC2 accessor of FLOAT, or of \
+                         normalized UNSIGNED_BYTE or UNSIGNED_SHORT"
+                    ));
+                }
+            }
             if let Some(a) = primitive.indices.and_then(accessor) {
                 let unsigned_scalar = matches!(a.type_, Checked::Valid(Type::Scalar))
                     && matches!(&a.component_type, Checked::Valid(c) if matches!(
@@ -214,6 +243,7 @@ fn load_scene_unchecked(
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| SceneError::Unreadable(e.to_string()))?;
     let root = document.into_json();
+    check_version(&root.asset)?;
     check_accessor_indices(&root)?;
     let document =
         gltf::Document::from_json(root).map_err(|e| SceneError::Unreadable(e.to_string()))?;
@@ -221,7 +251,17 @@ fn load_scene_unchecked(
     let mut warnings = Vec::new();
     let mut problems = Vec::new();
 
-    let materials = read_materials(&document, &mut warnings, &mut problems);
+    let (textures, texture_of) = read_textures(&document, &buffers, external, &mut problems);
+    let translucent = document
+        .materials()
+        .filter(|m| m.alpha_mode() != gltf::material::AlphaMode::Opaque)
+        .count();
+    if translucent > 0 {
+        warnings.push(format!(
+            "{translucent} material(s) use alphaMode MASK or BLEND: alpha is ignored, their surfaces are opaque to light (a decal lying on a wall replaces the wall's colour where it lies)"
+        ));
+    }
+    let materials = read_materials(&document, &texture_of, &mut problems);
     let default_material = materials.len() as u32;
     let mut materials = materials;
     let mut uses_default = false;
@@ -244,6 +284,7 @@ fn load_scene_unchecked(
     };
 
     let mut triangles = Vec::new();
+    let mut texcoords = Vec::new();
     let mut lights = Vec::new();
     let mut visited = vec![false; document.nodes().len()];
     let mut stack: Vec<(gltf::Node, DMat4, usize)> =
@@ -281,9 +322,10 @@ fn load_scene_unchecked(
                 &mesh,
                 world,
                 &buffers,
+                &materials,
                 default_material,
                 &mut uses_default,
-                &mut triangles,
+                (&mut triangles, &mut texcoords),
                 &mut problems,
                 &mut ignored_modes,
                 max_triangles,
@@ -319,16 +361,156 @@ fn load_scene_unchecked(
     if !problems.is_empty() {
         return Err(SceneError::Invalid(problems));
     }
-    Ok(Scene::new(triangles, materials, lights, warnings))
+    if !materials.iter().any(Material::has_texture) {
+        texcoords.clear();
+    }
+    Ok(Scene::new(triangles, materials, lights, warnings).with_textures(textures, texcoords))
+}
+
+/// glTF's own rule: `asset.version` (and `minVersion`, when given) must be 2.x.
+fn check_version(asset: &gltf::json::Asset) -> Result<(), SceneError> {
+    let major = |v: &str| {
+        v.split('.')
+            .next()
+            .and_then(|m| m.trim().parse::<u32>().ok())
+    };
+    if major(&asset.version) != Some(2) {
+        return Err(SceneError::Unreadable(format!(
+            "asset.version is \"{}\": only glTF 2.x is supported (re-export the file as glTF 2.0)",
+            asset.version
+        )));
+    }
+    if let Some(min) = &asset.min_version {
+        if major(min) != Some(2) {
+            return Err(SceneError::Unreadable(format!(
+                "asset.minVersion is \"{min}\": only glTF 2.x is supported"
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn wrap_of(mode: gltf::texture::WrappingMode) -> Wrap {
+    use gltf::texture::WrappingMode as M;
+    match mode {
+        M::Repeat => Wrap::Repeat,
+        M::MirroredRepeat => Wrap::MirroredRepeat,
+        M::ClampToEdge => Wrap::ClampToEdge,
+    }
+}
+
+/// A texture before decoding: its index, its place for messages, its wrap modes, its bytes (or why
+/// they could not be read).
+type EncodedTexture = (usize, String, [Wrap; 2], Result<Vec<u8>, String>);
+
+/// Decodes every texture a material uses as its base colour or emissive texture (others, such as
+/// normal maps, are not read). Returns the decoded textures and, per glTF texture index, its
+/// index among them. An image that cannot be read or decoded is a problem naming it.
+fn read_textures(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    external: &ExternalFiles,
+    problems: &mut Vec<Problem>,
+) -> (Vec<std::sync::Arc<Texture>>, Vec<Option<u32>>) {
+    let mut used = vec![false; document.textures().len()];
+    for m in document.materials() {
+        let infos = [
+            m.pbr_metallic_roughness().base_color_texture(),
+            m.emissive_texture(),
+        ];
+        for info in infos.into_iter().flatten() {
+            used[info.texture().index()] = true;
+        }
+    }
+    // The encoded images first, with their declared sizes: the scene's total is bounded before
+    // anything is decoded.
+    let mut total_texels = 0u64;
+    let sources: Vec<EncodedTexture> = document
+        .textures()
+        .filter(|t| used[t.index()])
+        .map(|t| {
+            let image = t.source();
+            let place = match image.name() {
+                Some(n) => format!("image {} ('{n}')", image.index()),
+                None => format!("image {}", image.index()),
+            };
+            let sampler = t.sampler();
+            let wrap = [wrap_of(sampler.wrap_s()), wrap_of(sampler.wrap_t())];
+            let bytes = match image.source() {
+                gltf::image::Source::View { view, .. } => buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
+                    .map(<[u8]>::to_vec)
+                    .ok_or_else(|| "its bufferView runs past its buffer".to_string()),
+                gltf::image::Source::Uri { uri, .. } => read_uri(uri, external),
+            };
+            if let Ok((w, h)) = bytes.as_deref().map_err(Clone::clone).and_then(dimensions) {
+                total_texels += u64::from(w) * u64::from(h);
+            }
+            (t.index(), place, wrap, bytes)
+        })
+        .collect();
+    if total_texels > MAX_SCENE_TEXELS {
+        problems.push(Problem {
+            place: "textures".into(),
+            message: format!(
+                "the base colour and emissive textures hold {total_texels} texels in all, more than the {MAX_SCENE_TEXELS} accepted: scale them down"
+            ),
+        });
+        return (Vec::new(), vec![None; used.len()]);
+    }
+    let decoded: Vec<(usize, Result<Texture, Problem>)> = sources
+        .into_par_iter()
+        .map(|(index, place, wrap, bytes)| {
+            let texture = bytes
+                .and_then(|b| Texture::decode(&b, &place, wrap))
+                .map_err(|message| Problem {
+                    place: format!("{place} (texture {index})"),
+                    message,
+                });
+            (index, texture)
+        })
+        .collect();
+    let mut textures = Vec::new();
+    let mut texture_of = vec![None; used.len()];
+    for (index, result) in decoded {
+        match result {
+            Ok(t) => {
+                texture_of[index] = Some(textures.len() as u32);
+                textures.push(std::sync::Arc::new(t));
+            }
+            Err(p) => problems.push(p),
+        }
+    }
+    (textures, texture_of)
+}
+
+fn texture_slot(info: &gltf::texture::Info, texture_of: &[Option<u32>]) -> Option<TextureSlot> {
+    let texture = texture_of.get(info.texture().index()).copied().flatten()?;
+    let (tex_coord, transform) = match info.texture_transform() {
+        Some(t) => (
+            t.tex_coord().unwrap_or(info.tex_coord()),
+            UvTransform {
+                offset: DVec2::from(t.offset().map(f64::from)),
+                rotation: f64::from(t.rotation()),
+                scale: DVec2::from(t.scale().map(f64::from)),
+            },
+        ),
+        None => (info.tex_coord(), UvTransform::IDENTITY),
+    };
+    Some(TextureSlot {
+        texture,
+        tex_coord,
+        transform,
+    })
 }
 
 fn read_materials(
     document: &gltf::Document,
-    warnings: &mut Vec<String>,
+    texture_of: &[Option<u32>],
     problems: &mut Vec<Problem>,
 ) -> Vec<Material> {
-    let mut textured = 0;
-    let materials: Vec<Material> = document
+    document
         .materials()
         .map(|m| {
             let index = m.index().unwrap_or(0);
@@ -344,26 +526,18 @@ fn read_materials(
                     message: "baseColorFactor, emissiveFactor or emissiveStrength is not a finite non-negative number".into(),
                 });
             }
-            let has_texture =
-                pbr.base_color_texture().is_some() || m.emissive_texture().is_some();
-            if has_texture {
-                textured += 1;
-            }
             Material {
                 name: m.name().map(str::to_owned).unwrap_or_else(|| format!("material_{index}")),
                 rho,
                 emission,
                 double_sided: m.double_sided(),
-                has_texture,
+                base_color_texture: pbr
+                    .base_color_texture()
+                    .and_then(|i| texture_slot(&i, texture_of)),
+                emissive_texture: m.emissive_texture().and_then(|i| texture_slot(&i, texture_of)),
             }
         })
-        .collect();
-    if textured > 0 {
-        warnings.push(format!(
-            "{textured} material(s) have base colour or emissive textures: textures are not read yet, their factors alone are used"
-        ));
-    }
-    materials
+        .collect()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -371,9 +545,10 @@ fn read_mesh(
     mesh: &gltf::Mesh,
     world: DMat4,
     buffers: &[Vec<u8>],
+    materials: &[Material],
     default_material: u32,
     uses_default: &mut bool,
-    triangles: &mut Vec<Triangle>,
+    (triangles, texcoords): (&mut Vec<Triangle>, &mut Vec<TriangleTexcoords>),
     problems: &mut Vec<Problem>,
     ignored_modes: &mut usize,
     max_triangles: usize,
@@ -416,7 +591,7 @@ fn read_mesh(
         };
         let tri_indices: Vec<[u32; 3]> = match mode {
             Mode::Triangles => {
-                if indices.len() % 3 != 0 {
+                if !indices.len().is_multiple_of(3) {
                     problems.push(Problem {
                         place: place.clone(),
                         message: format!("{} indices is not a multiple of 3", indices.len()),
@@ -429,7 +604,7 @@ fn read_mesh(
             }
             Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
                 .map(|i| {
-                    if i % 2 == 0 {
+                    if i.is_multiple_of(2) {
                         [indices[i], indices[i + 1], indices[i + 2]]
                     } else {
                         [indices[i + 1], indices[i], indices[i + 2]]
@@ -466,10 +641,30 @@ fn read_mesh(
                 default_material
             }
         };
+        let slots = materials
+            .get(material as usize)
+            .map(|m| [m.base_color_texture, m.emissive_texture])
+            .unwrap_or_default();
+        let Some(uv_sets) = read_uv_sets(
+            &primitive,
+            buffers,
+            &place,
+            slots,
+            positions.len(),
+            problems,
+        ) else {
+            continue;
+        };
         for (k, idx) in tri_indices.iter().enumerate() {
             let mut v = idx.map(|i| world.transform_point3(positions[i as usize]));
+            let mut uv = TriangleTexcoords {
+                base_color: idx.map(|i| uv_sets[0].get(i as usize).copied().unwrap_or_default()),
+                emissive: idx.map(|i| uv_sets[1].get(i as usize).copied().unwrap_or_default()),
+            };
             if mirrored {
                 v.swap(1, 2);
+                uv.base_color.swap(1, 2);
+                uv.emissive.swap(1, 2);
             }
             if v.iter().any(|p| !p.is_finite()) {
                 problems.push(Problem {
@@ -487,8 +682,56 @@ fn read_mesh(
                     triangle: k as u32,
                 },
             });
+            texcoords.push(uv);
         }
     }
+}
+
+/// Per texture slot (base colour, emissive) of a primitive's material, the texture coordinates of
+/// each vertex with the slot's transform applied (empty for a slot without a texture). A
+/// `TEXCOORD_n` a texture needs that the primitive lacks, or whose count or values are wrong, is
+/// a problem (`None`): a texture is never silently dropped.
+fn read_uv_sets(
+    primitive: &gltf::Primitive,
+    buffers: &[Vec<u8>],
+    place: &str,
+    slots: [Option<TextureSlot>; 2],
+    vertices: usize,
+    problems: &mut Vec<Problem>,
+) -> Option<[Vec<DVec2>; 2]> {
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+    let mut sets: [Vec<DVec2>; 2] = Default::default();
+    let names = ["baseColorTexture", "emissiveTexture"];
+    for (k, slot) in slots.iter().enumerate() {
+        let Some(slot) = slot else { continue };
+        let set = slot.tex_coord;
+        let Some(read) = reader.read_tex_coords(set) else {
+            problems.push(Problem {
+                place: place.to_owned(),
+                message: format!(
+                    "its material's {} reads TEXCOORD_{set}, which the primitive lacks (or its accessor runs past its buffer)",
+                    names[k]
+                ),
+            });
+            return None;
+        };
+        let uvs: Vec<DVec2> = read
+            .into_f32()
+            .map(|[u, v]| slot.transform.apply(DVec2::new(f64::from(u), f64::from(v))))
+            .collect();
+        if uvs.len() != vertices || uvs.iter().any(|p| !p.is_finite()) {
+            problems.push(Problem {
+                place: place.to_owned(),
+                message: format!(
+                    "TEXCOORD_{set} has {} values for {vertices} vertices, or a NaN/infinite one",
+                    uvs.len()
+                ),
+            });
+            return None;
+        }
+        sets[k] = uvs;
+    }
+    Some(sets)
 }
 
 /// At most this many problems are listed per primitive; the rest are counted in one more line.

@@ -30,7 +30,8 @@ impl SceneBuilder {
             rho,
             emission,
             double_sided,
-            has_texture: false,
+            base_color_texture: None,
+            emissive_texture: None,
         });
         (self.materials.len() - 1) as u32
     }
@@ -183,7 +184,7 @@ impl SceneBuilder {
                 mj
             })
             .collect();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let mut root = json!({
@@ -205,11 +206,11 @@ impl SceneBuilder {
 /// Packs a JSON document and a binary chunk into GLB bytes (chunks padded to 4 bytes).
 pub fn glb_from_parts(root: &Value, bin: &[u8]) -> Vec<u8> {
     let mut json_bytes = serde_json::to_vec(root).unwrap_or_default();
-    while json_bytes.len() % 4 != 0 {
+    while !json_bytes.len().is_multiple_of(4) {
         json_bytes.push(b' ');
     }
     let mut bin = bin.to_vec();
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let total = 12 + 8 + json_bytes.len() + if bin.is_empty() { 0 } else { 8 + bin.len() };

@@ -15,11 +15,14 @@ mod buffers;
 mod error;
 mod gltf_import;
 pub mod gltf_writer;
+mod texture;
 
 pub use error::{Problem, SceneError};
 pub use gltf_import::{load_scene, load_scene_from_path, ExternalFiles};
+pub use texture::{srgb_to_linear, Texture, TextureSlot, UvTransform, Wrap};
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
+use std::sync::Arc;
 
 /// Linear RGB triple (per colour channel quantities: rho, L_e, radiosity...).
 pub type Rgb = [f64; 3];
@@ -29,14 +32,18 @@ pub type Rgb = [f64; 3];
 pub struct Material {
     /// glTF material name (or `material_N`).
     pub name: String,
-    /// Reflectance, `baseColorFactor.rgb` clamped to `[0, 1]`.
+    /// Reflectance factor, `baseColorFactor.rgb` clamped to `[0, 1]`; the reflectance is this
+    /// times the base colour texture's linear value when there is one.
     pub rho: Rgb,
-    /// Emitted radiance L_e = `emissiveFactor * emissiveStrength`.
+    /// Emitted radiance factor L_e = `emissiveFactor * emissiveStrength`; times the emissive
+    /// texture's linear value when there is one.
     pub emission: Rgb,
     /// Two radiosity sides (glTF `doubleSided`).
     pub double_sided: bool,
-    /// The glTF material had a texture whose content is ignored.
-    pub has_texture: bool,
+    /// `baseColorTexture`.
+    pub base_color_texture: Option<TextureSlot>,
+    /// `emissiveTexture`.
+    pub emissive_texture: Option<TextureSlot>,
 }
 
 impl Material {
@@ -47,8 +54,14 @@ impl Material {
             rho: [1.0; 3],
             emission: [0.0; 3],
             double_sided: false,
-            has_texture: false,
+            base_color_texture: None,
+            emissive_texture: None,
         }
+    }
+
+    /// True when reflectance or emission comes from a texture.
+    pub fn has_texture(&self) -> bool {
+        self.base_color_texture.is_some() || self.emissive_texture.is_some()
     }
 
     /// True when the material emits on any channel.
@@ -139,6 +152,14 @@ impl Bounds {
     }
 }
 
+/// The texture coordinates of one triangle's corners (in its vertex order), as its material's
+/// textures read them: the `TEXCOORD_n` set each names, its `KHR_texture_transform` applied.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TriangleTexcoords {
+    pub base_color: [DVec2; 3],
+    pub emissive: [DVec2; 3],
+}
+
 /// A validated scene.
 #[derive(Debug, Clone)]
 pub struct Scene {
@@ -146,8 +167,12 @@ pub struct Scene {
     pub materials: Vec<Material>,
     pub lights: Vec<PunctualLight>,
     pub bounds: Bounds,
-    /// Things the user should know that did not stop the import (ignored textures, lines...).
+    /// Things the user should know that did not stop the import (ignored lines, textures...).
     pub warnings: Vec<String>,
+    /// Decoded textures, indexed by [`TextureSlot::texture`].
+    pub textures: Vec<Arc<Texture>>,
+    /// Per triangle (same index), its texture coordinates; empty when no material has a texture.
+    pub texcoords: Vec<TriangleTexcoords>,
 }
 
 impl Scene {
@@ -170,7 +195,22 @@ impl Scene {
             lights,
             bounds,
             warnings,
+            textures: Vec::new(),
+            texcoords: Vec::new(),
         }
+    }
+
+    /// The scene with textures and per-triangle texture coordinates (`texcoords` empty, or one
+    /// per triangle).
+    pub fn with_textures(
+        mut self,
+        textures: Vec<Arc<Texture>>,
+        texcoords: Vec<TriangleTexcoords>,
+    ) -> Self {
+        debug_assert!(texcoords.is_empty() || texcoords.len() == self.triangles.len());
+        self.textures = textures;
+        self.texcoords = texcoords;
+        self
     }
 
     /// The length of the bounding-box diagonal: the scale every geometric tolerance is relative to.

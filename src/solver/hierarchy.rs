@@ -9,6 +9,7 @@
 
 use super::basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
 use super::cover::NodeCover;
+use super::node_reflectance::NodeReflectance;
 use crate::domain::Shape;
 use crate::scene::Rgb;
 use glam::DVec2;
@@ -47,6 +48,9 @@ pub struct Hierarchy {
     pub touched: bool,
     /// Extended roots only: per node, how it covers the face ([`super::cover`]); empty otherwise.
     pub covers: Vec<NodeCover>,
+    /// Roots whose reflectance varies only: per node, its reflectance
+    /// ([`super::node_reflectance`]); empty otherwise (the root's `rho` holds everywhere).
+    pub reflectance: Vec<NodeReflectance>,
 }
 
 impl Hierarchy {
@@ -64,6 +68,7 @@ impl Hierarchy {
             len,
             touched: false,
             covers: Vec::new(),
+            reflectance: Vec::new(),
         }
     }
 
@@ -108,13 +113,16 @@ impl Hierarchy {
     }
 
     /// Pushes `dh` down to the leaves and pulls it back up, adding the result to `h` (and `hd` when
-    /// `direct`) and `rho * result` to `u`; clears `dh`.
+    /// `direct`) and the reflected radiosity to `u`: `rho * result` with the root's constant
+    /// `rho`, or, where the reflectance varies (`reflectance` not empty), each leaf's own
+    /// reflectance times its result, pulled up the tree. Clears `dh`.
     pub fn push_pull(&mut self, basis: &Basis, rho: Rgb, direct: bool) {
         let zero = [[0.0; 3]; MAX_FUNCTIONS];
         self.push_pull_node(0, &zero, basis, rho, direct);
         self.touched = false;
     }
 
+    /// Returns the node's increments of `h` and of `u`.
     fn push_pull_node(
         &mut self,
         node: usize,
@@ -122,7 +130,8 @@ impl Hierarchy {
         basis: &Basis,
         rho: Rgb,
         direct: bool,
-    ) -> [Rgb; MAX_FUNCTIONS] {
+    ) -> ([Rgb; MAX_FUNCTIONS], [Rgb; MAX_FUNCTIONS]) {
+        let varying = !self.reflectance.is_empty();
         let n = self.len;
         let mut total = *inherited;
         for i in 0..n {
@@ -132,28 +141,44 @@ impl Hierarchy {
             self.dh[node * n + i] = [0.0; 3];
         }
         let first = self.nodes[node].first_child as usize;
+        let mut reflected = [[0.0; 3]; MAX_FUNCTIONS];
         let result = if first == 0 {
+            let leaf_rho = self.reflectance.get(node).map_or(rho, |r| r.mean);
+            for i in 0..n {
+                for k in 0..3 {
+                    reflected[i][k] = leaf_rho[k] * total[i][k];
+                }
+            }
             total
         } else {
             let mut result = [[0.0; 3]; MAX_FUNCTIONS];
             for c in 0..4 {
                 let mut child_inh = [[0.0; 3]; MAX_FUNCTIONS];
                 basis.push(c, &total[..n], &mut child_inh[..n]);
-                let r = self.push_pull_node(first + c, &child_inh, basis, rho, direct);
+                let (r, du) = self.push_pull_node(first + c, &child_inh, basis, rho, direct);
                 basis.pull_add(c, &r[..n], &mut result[..n]);
+                basis.pull_add(c, &du[..n], &mut reflected[..n]);
             }
             result
         };
+        if !varying {
+            // A constant reflectance commutes with the pull: the historical (bit-identical) form.
+            for i in 0..n {
+                for k in 0..3 {
+                    reflected[i][k] = rho[k] * result[i][k];
+                }
+            }
+        }
         for i in 0..n {
             for k in 0..3 {
                 self.h[node * n + i][k] += result[i][k];
-                self.u[node * n + i][k] += rho[k] * result[i][k];
+                self.u[node * n + i][k] += reflected[i][k];
                 if direct {
                     self.hd[node * n + i][k] += result[i][k];
                 }
             }
         }
-        result
+        (result, reflected)
     }
 
     /// The leaf containing root point `st`, and `st` in that leaf's local coordinates.

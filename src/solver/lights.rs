@@ -15,8 +15,8 @@ use super::hierarchy::Hierarchy;
 use super::visibility::Visibility;
 use super::{
     corner_probe_points, first_child, gather, max_deviation, mean_rgb_sum, oracle_weight,
-    receiving_point, visibility_point, weighted_deviation, Bases, BasisAtControlPoints, Patch,
-    Quantity, Rules, MAX_DEPTH,
+    receiving_point, reflectance_error, visibility_point, weighted_deviation, Bases,
+    BasisAtControlPoints, Patch, Quantity, Rules, MAX_DEPTH,
 };
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
@@ -121,7 +121,10 @@ impl LightShot<'_> {
         // Extended receivers: points off the face see the light from their closest face point.
         let rcover = cover::of_node(rcv, rroot, b);
         let ignore = [rroot.face.0; 2];
-        let weight = oracle_weight(self.quantity, rroot);
+        let weight = oracle_weight(
+            self.quantity,
+            super::node_reflectance::rho_of(rcv, rroot, b),
+        );
         let psi = self.psi.of(rroot.shape);
         let weighted = |e: Rgb| (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
         let mut e_k = [[0.0f64; 3]; 64];
@@ -166,6 +169,7 @@ impl LightShot<'_> {
         if partial {
             err = err.max(unoccluded_max);
         }
+        err = err.max(reflectance_error(rcv, b, dh[0]));
         if err * rp.area > self.threshold {
             if rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge {
                 let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);

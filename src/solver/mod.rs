@@ -16,6 +16,7 @@ pub mod cover;
 pub mod hierarchy;
 pub mod kernel;
 pub mod lights;
+pub mod node_reflectance;
 pub mod quadrature;
 mod shot_record;
 pub mod visibility;
@@ -573,7 +574,7 @@ impl ShotContext<'_> {
             }
         }
         let ignore = [sroot.face.0, rroot.face.0];
-        let oracle_weight = oracle_weight(self.quantity, rroot);
+        let oracle_weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
         // move (the constant part is exact: it uses the exact form factor).
         let weighted_amplitude = |bfn: usize| {
@@ -734,6 +735,9 @@ impl ShotContext<'_> {
         if let Some(unseen) = missed {
             err = err.max(unseen * source_strength / rp.area);
         }
+        // A leaf whose reflectance varies reflects its mean: the light it puts in the wrong place.
+        let reflect_err = reflectance_error(rcv, b, dh[0]);
+        err = err.max(reflect_err);
         // The error the control points see across the receiver, before the partial-visibility bound.
         let receiver_err = err;
         if partial {
@@ -759,6 +763,7 @@ impl ShotContext<'_> {
             // source; split source links would each carry too little error to refine it.
             // A source the receiver's points missed: only the receiver's refinement finds it.
             let receiver_first = missed.is_some()
+                || reflect_err * rp.area > threshold
                 || (partial
                     && receiver_err * rp.area > threshold
                     && receiver_err >= source_side_err);
@@ -805,7 +810,7 @@ impl ShotContext<'_> {
         let rroot = &self.roots[rcv_index];
         let rbasis = self.bases.of(rroot.shape);
         let nr = rbasis.len();
-        let weight = oracle_weight(self.quantity, rroot);
+        let weight = oracle_weight(self.quantity, rroot.rho);
         let psi = self.psi.of(rroot.shape);
         let deviation =
             |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| max_deviation(psi, e, dh, nr, weight);
@@ -876,11 +881,24 @@ fn max_deviation(
 }
 
 /// What the oracle weighs each channel's irradiance error by: rho for radiance, 1 for irradiance.
-fn oracle_weight(quantity: Quantity, rroot: &ElementRoot) -> Rgb {
+fn oracle_weight(quantity: Quantity, rho: Rgb) -> Rgb {
     match quantity {
-        Quantity::Radiance => rroot.rho,
+        Quantity::Radiance => rho,
         Quantity::Irradiance => [1.0; 3],
     }
+}
+
+/// The reflected radiosity that leaf `b` of a root whose reflectance varies puts in the wrong
+/// place when it receives irradiance of mean `mean_h`: its reflectance's mean absolute deviation
+/// times `mean_h`, summed over channels (W/m^2). An element across a sharp colour change reflects
+/// their mean; this is what its refinement moves back. Zero for inner nodes (their leaves reflect
+/// with their own reflectance) and for roots of constant reflectance.
+fn reflectance_error(rcv: &Hierarchy, b: usize, mean_h: Rgb) -> f64 {
+    if !rcv.nodes[b].is_leaf() {
+        return 0.0;
+    }
+    let dev = node_reflectance::deviation_of(rcv, b);
+    (0..3).map(|ch| dev[ch] * mean_h[ch].abs()).sum()
 }
 
 /// The first of node `b`'s four children, splitting `b` first if it is a leaf (an extended
@@ -895,6 +913,7 @@ fn first_child(
     if rcv.nodes[b].is_leaf() {
         let first = rcv.split(b, basis, root.shape);
         cover::extend(rcv, root, cover_rules, basis);
+        node_reflectance::extend(rcv, root);
         first
     } else {
         rcv.nodes[b].first_child as usize
@@ -1081,6 +1100,7 @@ pub fn solve(
             let basis = bases.of(r.shape);
             let mut h = Hierarchy::new(basis.len());
             cover::extend(&mut h, r, &rules.cover, basis);
+            node_reflectance::extend(&mut h, r);
             h
         })
         .collect();
@@ -1386,6 +1406,8 @@ impl Solution {
             h.touched = false;
             h.covers.clear();
             cover::extend(h, r, &rules.cover, basis);
+            h.reflectance.clear();
+            node_reflectance::extend(h, r);
         }
         Ok(Solution {
             roots,
@@ -1416,14 +1438,25 @@ impl Solution {
         }
     }
 
-    /// The requested quantity at root point `st` (radiance `B/pi` or `H/pi`), clamped at 0.
+    /// The requested quantity at root point `st` (radiance `B/pi` or `H/pi`), clamped at 0. On a
+    /// textured face, radiance takes the reflectance and emission of the texture at the point.
     pub fn value_at(&self, root: usize, st: DVec2) -> Rgb {
         let h = self.irradiance_at(root, st);
-        self.quantity_from_irradiance(root, h).map(|v| v.max(0.0))
+        let r = &self.roots[root];
+        let (rho, emitted) = match &r.reflectance {
+            Some(map) => {
+                let (rho, le) = map.texture.at(r.frame.point(st));
+                (rho, le.map(|x| std::f64::consts::PI * x))
+            }
+            None => (r.rho, r.exitance),
+        };
+        self.quantity(h, [0, 1, 2].map(|c| rho[c] * h[c]), emitted)
+            .map(|v| v.max(0.0))
     }
 
-    fn quantity_from_irradiance(&self, root: usize, h: Rgb) -> Rgb {
-        let r = &self.roots[root];
+    /// Radiance `(E + reflected) / pi` or `H / pi`, from irradiance `h`, the radiosity it reflects
+    /// and the exitance `e` (left out with `indirect_only`).
+    fn quantity(&self, h: Rgb, reflected: Rgb, e: Rgb) -> Rgb {
         let pi = std::f64::consts::PI;
         match self.params.quantity {
             Quantity::Irradiance => h.map(|x| x / pi),
@@ -1431,11 +1464,54 @@ impl Solution {
                 let e = if self.params.indirect_only {
                     [0.0; 3]
                 } else {
-                    r.exitance
+                    e
                 };
-                [0, 1, 2].map(|c| (e[c] + r.rho[c] * h[c]) / pi)
+                [0, 1, 2].map(|c| (e[c] + reflected[c]) / pi)
             }
         }
+    }
+
+    /// Mean over the root's face of the radiosity its received irradiance reflects (all light,
+    /// or indirect only): `rho` times the mean irradiance, or, where the reflectance varies, each
+    /// leaf's reflectance times its irradiance, integrated over the face.
+    fn face_mean_reflected(&self, root: usize, indirect: bool, clamp_leaves: bool) -> Rgb {
+        let r = &self.roots[root];
+        let h = &self.hierarchies[root];
+        if h.reflectance.is_empty() {
+            let mean_h = self.face_mean_irradiance(root, indirect, clamp_leaves);
+            return [0, 1, 2].map(|c| r.rho[c] * mean_h[c]);
+        }
+        let n = h.len;
+        let coeff = |k: usize| -> Rgb {
+            let rho = h.reflectance[k / n].mean;
+            [0, 1, 2].map(|c| {
+                let x = if indirect {
+                    h.h[k][c] - h.hd[k][c]
+                } else {
+                    h.h[k][c]
+                };
+                rho[c] * x
+            })
+        };
+        let clamp = |x: f64| if clamp_leaves && x < 0.0 { 0.0 } else { x };
+        if r.mask.is_none() {
+            // Coefficient 0 is a leaf's mean; its share of the root is its map's determinant.
+            let mut sum = [0.0; 3];
+            for (i, node) in h.nodes.iter().enumerate() {
+                if node.is_leaf() {
+                    let share = node.map.e1.perp_dot(node.map.e2).abs();
+                    let c = coeff(i * n);
+                    for ch in 0..3 {
+                        sum[ch] += clamp(share * c[ch]);
+                    }
+                }
+            }
+            return sum;
+        }
+        if r.face_area_m2 <= 0.0 {
+            return coeff(0);
+        }
+        cover::face_integral_by(h, r, clamp_leaves, coeff).map(|x| x / r.face_area_m2)
     }
 
     /// Mean over the root's face of the irradiance received (all light, or indirect only):
@@ -1462,9 +1538,14 @@ impl Solution {
     /// negative light, and a face in full shadow can end a hair below 0 (1e-6 of the scene's mean
     /// on the Red Eclipse level).
     pub fn mean_value(&self, root: usize) -> Rgb {
-        let mean_h = self.face_mean_irradiance(root, self.params.indirect_only, true);
+        let indirect = self.params.indirect_only;
+        let mean_h = self.face_mean_irradiance(root, indirect, true);
+        let reflected = match self.params.quantity {
+            Quantity::Radiance => self.face_mean_reflected(root, indirect, true),
+            Quantity::Irradiance => [0.0; 3],
+        };
         // (`if`, not `max`: a NaN must stay visible.)
-        self.quantity_from_irradiance(root, mean_h)
+        self.quantity(mean_h, reflected, self.roots[root].exitance)
             .map(|v| if v < 0.0 { 0.0 } else { v })
     }
 
@@ -1472,7 +1553,7 @@ impl Solution {
     pub fn mean_radiosity(&self, root: usize) -> Rgb {
         let r = &self.roots[root];
         // Unclamped: the raw integral, so checks of it see what the solver computed.
-        let h = self.face_mean_irradiance(root, false, false);
-        [0, 1, 2].map(|c| r.exitance[c] + r.rho[c] * h[c])
+        let reflected = self.face_mean_reflected(root, false, false);
+        [0, 1, 2].map(|c| r.exitance[c] + reflected[c])
     }
 }
