@@ -311,6 +311,8 @@ fn sided(frame: Frame, side: Side) -> Frame {
 pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domains {
     let mut domains = Domains::default();
     let inset = mask::VISIBILITY_INSET_REL * scene.diagonal();
+    // Roots of faces whose reflectance varies, with their face's texture.
+    let mut varying: Vec<(usize, Arc<FaceTexture>)> = Vec::new();
     for face in &faces.faces {
         let material = &scene.materials[face.material as usize];
         let texture = FaceTexture::new(scene, faces, face);
@@ -353,17 +355,10 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                 // An extended root's face area from its rings (what the mask's coverage
                 // integrates to), so powers and means agree with coverage.
                 let face_area = mask.as_ref().map_or(area, |m| m.domain().face_area_m2());
-                let varying = texture.as_ref().and_then(|t| {
-                    ReflectanceMap::new(t.clone(), &frame, |st| match (&mask, shape) {
-                        (Some(m), _) => m.contains(st),
-                        (None, Shape::Triangle) => st.x + st.y <= 1.0,
-                        (None, Shape::Parallelogram) => true,
-                    })
-                });
-                let (rho, emission, reflectance) = match varying {
-                    Some((map, emission)) => (map.mean, emission, Some(Arc::new(map))),
-                    None => (rho, emission, None),
-                };
+                if let Some(t) = &texture {
+                    // Its map is read after every root is built, in parallel.
+                    varying.push((domains.roots.len(), t.clone()));
+                }
                 let exitance = emission.map(|e| std::f64::consts::PI * e);
                 domains.roots.push(ElementRoot {
                     face: face.id,
@@ -377,7 +372,7 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
                     material: face.material,
                     rho,
                     exitance,
-                    reflectance,
+                    reflectance: None,
                 });
             };
             match (face.kind, &masked) {
@@ -412,5 +407,45 @@ pub fn build_domains(scene: &Scene, faces: &FaceSet, mode: DomainMode) -> Domain
             });
         }
     }
+    read_reflectance_maps(&mut domains.roots, varying, scene.diagonal());
     domains
+}
+
+/// A reflectance raster's cells are at least this fraction of the scene's diagonal: finer detail
+/// of a texture does not move the light, and a tiled texture would otherwise give every small
+/// face of a level a full raster.
+pub const RASTER_CELL_REL: f64 = 1.0 / 512.0;
+
+/// Reads the reflectance maps of the roots whose face's texture varies (in parallel), and sets
+/// their `rho` and `exitance` to the maps' means.
+fn read_reflectance_maps(
+    roots: &mut [ElementRoot],
+    varying: Vec<(usize, Arc<FaceTexture>)>,
+    diagonal: f64,
+) {
+    use rayon::prelude::*;
+    let maps: Vec<(usize, Option<(ReflectanceMap, Rgb)>)> = varying
+        .into_par_iter()
+        .map(|(i, texture)| {
+            let r = &roots[i];
+            let extent = r.frame.u.length().max(r.frame.v.length());
+            let max_cells = (extent / (RASTER_CELL_REL * diagonal)).ceil();
+            let map = ReflectanceMap::new(texture, &r.frame, max_cells, |st| {
+                match (&r.mask, r.shape) {
+                    (Some(m), _) => m.contains(st),
+                    (None, Shape::Triangle) => st.x + st.y <= 1.0,
+                    (None, Shape::Parallelogram) => true,
+                }
+            });
+            (i, map)
+        })
+        .collect();
+    for (i, map) in maps {
+        if let Some((map, emission)) = map {
+            let r = &mut roots[i];
+            r.rho = map.mean;
+            r.exitance = emission.map(|e| std::f64::consts::PI * e);
+            r.reflectance = Some(Arc::new(map));
+        }
+    }
 }

@@ -334,14 +334,16 @@ pub const MAX_SUBSAMPLES: usize = 4;
 impl ReflectanceMap {
     /// Samples `texture` over the cells of a root framed by `frame`, at the sub-sample points for
     /// which `on_face` holds; returns the map and the mean emitted radiance. `None` when no
-    /// sub-sample is on the face.
+    /// sub-sample is on the face. Cells per side: the face's texel span, at most `max_cells` (and
+    /// within `2..=RASTER`).
     pub fn new(
         texture: Arc<FaceTexture>,
         frame: &Frame,
+        max_cells: f64,
         on_face: impl Fn(DVec2) -> bool,
     ) -> Option<(ReflectanceMap, Rgb)> {
         let span = texture.texel_span;
-        let n = (span.ceil() as usize).clamp(2, RASTER);
+        let n = (span.min(max_cells).ceil() as usize).clamp(2, RASTER);
         let k = ((span / n as f64).ceil() as usize).clamp(1, MAX_SUBSAMPLES);
         let mut cells = Vec::with_capacity(n * n);
         let (mut rho_sum, mut emit_sum, mut count) = ([0.0; 3], [0.0; 3], 0usize);
