@@ -350,6 +350,16 @@ fn load_scene_unchecked(
             stack.push((child, world, depth + 1));
         }
     }
+    let coloured = document
+        .meshes()
+        .flat_map(|m| m.primitives())
+        .filter(|p| p.get(&gltf::Semantic::Colors(0)).is_some())
+        .count();
+    if coloured > 0 {
+        warnings.push(format!(
+            "{coloured} primitive(s) have COLOR_0 vertex colours, which are not read: their reflectance is baseColorFactor x baseColorTexture alone"
+        ));
+    }
     if ignored_modes > 0 {
         warnings.push(format!(
             "{ignored_modes} primitive(s) of points or lines ignored: only surfaces take part in radiosity"
