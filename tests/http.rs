@@ -1672,3 +1672,63 @@ async fn the_dashboard_page_is_served() {
         "no external resources"
     );
 }
+
+/// Over HTTP a texture's image is a named part of a multipart upload (never a file of the
+/// server's): the job solves with it; a missing part, an image that cannot be decoded and glTF 1.0
+/// are 422s that name what to fix.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_upload_carries_its_images_as_named_parts() {
+    let base = start(ServiceConfig::new(data_dir("textures"))).await;
+    let client = client();
+    let upload = |parts: &[(&str, &[u8])]| {
+        let parts: Vec<(&str, &str, &str, &[u8])> = parts
+            .iter()
+            .map(|&(name, bytes)| (name, name, "application/octet-stream", bytes))
+            .collect();
+        multipart(&parts)
+    };
+    let (gltf, bin, png) = common::glowing_quad_gltf("2.0");
+    let (content_type, body) = upload(&[("scene", &gltf), ("scene.bin", &bin), ("glow.png", &png)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let job: Value = response.json().await.unwrap();
+    let id = job["id"].as_str().unwrap();
+    wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    let result: Value = client
+        .get(format!("{base}/v1/jobs/{id}/result"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    let mean = result["faces"][0]["mean_radiance"][0].as_f64().unwrap();
+    let glow = common::glow();
+    assert!(
+        (mean - glow).abs() < 1e-6,
+        "emission {mean}, texture {glow}"
+    );
+
+    let (old, _, _) = common::glowing_quad_gltf("1.0");
+    let not_png: &[u8] = b"GIF89a, not a PNG";
+    // (parts, what the message names)
+    type Refusal<'a> = (Vec<(&'a str, &'a [u8])>, &'a str);
+    let refusals: [Refusal; 3] = [
+        (vec![("scene", &gltf), ("scene.bin", &bin)], "glow.png"),
+        (
+            vec![("scene", &gltf), ("scene.bin", &bin), ("glow.png", not_png)],
+            "image 0",
+        ),
+        (
+            vec![("scene", &old), ("scene.bin", &bin), ("glow.png", &png)],
+            "asset.version",
+        ),
+    ];
+    for (parts, needle) in refusals {
+        let (content_type, body) = upload(&parts);
+        let response = submit(&client, &base, "order=1", &content_type, body).await;
+        let error = error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
+        let message = error["message"].as_str().unwrap_or_default();
+        assert!(message.contains(needle), "{needle}: {error}");
+    }
+}

@@ -19,147 +19,15 @@ use wavrad::domain::DomainMode;
 use wavrad::output::probes::evaluate_probes;
 use wavrad::pipeline::bake;
 use wavrad::reference::ReferenceSet;
-use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
+use wavrad::scene::gltf_writer::SceneBuilder;
 use wavrad::scene::{load_scene, ExternalFiles, LightKind, PunctualLight, Scene, SceneError};
 use wavrad::solver::{Quantity, SolverParams};
 
 mod common;
-use common::multipart;
+use common::{glow, glowing_quad_gltf, linear_to_srgb_byte, palette_image, Glb};
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// A GLB taken apart for editing: its JSON and its binary chunk.
-struct Glb {
-    json: Value,
-    bin: Vec<u8>,
-}
-
-impl Glb {
-    fn parse(bytes: &[u8]) -> Glb {
-        let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap()) as usize;
-        let json_len = u32_at(12);
-        let json: Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
-        let bin_at = 20 + json_len;
-        let bin = if bin_at + 8 <= bytes.len() {
-            bytes[bin_at + 8..bin_at + 8 + u32_at(bin_at)].to_vec()
-        } else {
-            Vec::new()
-        };
-        Glb { json, bin }
-    }
-
-    fn glb_bytes(&mut self) -> Vec<u8> {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-        self.json["buffers"] = json!([{"byteLength": self.bin.len()}]);
-        glb_from_parts(&self.json, &self.bin)
-    }
-
-    fn push_array(&mut self, key: &str, value: Value) -> usize {
-        if self.json.get(key).is_none() {
-            self.json[key] = json!([]);
-        }
-        let array = self.json[key].as_array_mut().unwrap();
-        array.push(value);
-        array.len() - 1
-    }
-
-    fn push_view(&mut self, bytes: &[u8]) -> usize {
-        while !self.bin.len().is_multiple_of(4) {
-            self.bin.push(0);
-        }
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
-        self.push_array(
-            "bufferViews",
-            json!({"buffer": 0, "byteOffset": offset, "byteLength": bytes.len()}),
-        )
-    }
-
-    /// Adds an image (embedded in a buffer view) and a texture of it; returns the texture index.
-    fn add_texture(&mut self, bytes: &[u8], mime: &str, sampler: Option<Value>) -> usize {
-        let view = self.push_view(bytes);
-        let image = self.push_array("images", json!({"bufferView": view, "mimeType": mime}));
-        let mut texture = json!({"source": image});
-        if let Some(s) = sampler {
-            texture["sampler"] = json!(self.push_array("samplers", s));
-        }
-        self.push_array("textures", texture)
-    }
-
-    /// The POSITION values of mesh `m`'s first primitive (tightly packed float VEC3).
-    fn positions(&self, m: usize) -> Vec<[f32; 3]> {
-        let a = &self.json["accessors"][self.json["meshes"][m]["primitives"][0]["attributes"]
-            ["POSITION"]
-            .as_u64()
-            .unwrap() as usize];
-        let view = &self.json["bufferViews"][a["bufferView"].as_u64().unwrap() as usize];
-        assert!(view
-            .get("byteStride")
-            .is_none_or(|s| s.as_u64() == Some(12)));
-        let start = view["byteOffset"].as_u64().unwrap_or(0) as usize
-            + a["byteOffset"].as_u64().unwrap_or(0) as usize;
-        let count = a["count"].as_u64().unwrap() as usize;
-        (0..count)
-            .map(|i| {
-                let f = |k: usize| {
-                    let at = start + 12 * i + 4 * k;
-                    f32::from_le_bytes(self.bin[at..at + 4].try_into().unwrap())
-                };
-                [f(0), f(1), f(2)]
-            })
-            .collect()
-    }
-
-    /// Gives mesh `m`'s first primitive a `TEXCOORD_0` computed from each vertex's position.
-    fn set_uvs(&mut self, m: usize, uv: impl Fn([f32; 3]) -> [f32; 2]) {
-        let values: Vec<[f32; 2]> = self.positions(m).into_iter().map(uv).collect();
-        let bytes: Vec<u8> = values
-            .iter()
-            .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
-            .collect();
-        let view = self.push_view(&bytes);
-        let accessor = self.push_array(
-            "accessors",
-            json!({"bufferView": view, "componentType": 5126, "count": values.len(), "type": "VEC2"}),
-        );
-        self.json["meshes"][m]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(accessor);
-    }
-}
-
-fn linear_to_srgb_byte(c: f64) -> u8 {
-    let s = if c <= 0.0031308 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
-    (s.clamp(0.0, 1.0) * 255.0).round() as u8
-}
-
-/// Cells of this many texels per side in the palette textures (a JPEG macroblock: its chroma is
-/// subsampled 2x, so smaller cells would share their colour with a neighbour).
-const CELL: u32 = 16;
-
-/// A row of uniform cells holding `colours` (linear, encoded as sRGB bytes).
-fn palette_image(colours: &[[f64; 3]], format: image::ImageFormat) -> Vec<u8> {
-    let width = CELL * colours.len() as u32;
-    let img = image::RgbImage::from_fn(width, CELL, |x, _| {
-        image::Rgb(colours[(x / CELL) as usize].map(linear_to_srgb_byte))
-    });
-    let mut bytes = Vec::new();
-    let mut cursor = std::io::Cursor::new(&mut bytes);
-    match format {
-        image::ImageFormat::Jpeg => {
-            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut cursor, 95)
-                .encode_image(&img)
-                .unwrap();
-        }
-        _ => img.write_to(&mut cursor, format).unwrap(),
-    }
-    bytes
 }
 
 /// How a twin colours its surfaces.
@@ -641,6 +509,26 @@ fn a_texture_that_cannot_be_read_is_refused_with_its_name() {
 }
 
 #[test]
+fn vertex_colours_and_alpha_are_named_in_a_warning() {
+    let mut b = SceneBuilder::new();
+    let m = b.material([1.0; 3], [0.0; 3], false);
+    b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+    let mut glb = Glb::parse(&b.to_glb());
+    let colours: Vec<u8> = [0.5f32; 12].iter().flat_map(|c| c.to_le_bytes()).collect();
+    let view = glb.push_view(&colours);
+    let accessor = glb.push_array(
+        "accessors",
+        json!({"bufferView": view, "componentType": 5126, "count": 4, "type": "VEC3"}),
+    );
+    glb.json["meshes"][0]["primitives"][0]["attributes"]["COLOR_0"] = json!(accessor);
+    glb.json["materials"][0]["alphaMode"] = json!("BLEND");
+    let scene = load_scene(&glb.glb_bytes(), &ExternalFiles::Refuse, 1000).unwrap();
+    let warnings = scene.warnings.join("\n");
+    assert!(warnings.contains("COLOR_0"), "{warnings}");
+    assert!(warnings.contains("alphaMode"), "{warnings}");
+}
+
+#[test]
 fn a_file_that_is_not_gltf_2_is_refused() {
     let mut b = SceneBuilder::new();
     let m = b.material([1.0; 3], [0.0; 3], false);
@@ -652,30 +540,6 @@ fn a_file_that_is_not_gltf_2_is_refused() {
         assert!(matches!(err, SceneError::Unreadable(_)));
         assert!(err.to_string().contains(value), "{err}");
     }
-}
-
-/// An emitting unit quad whose emission comes from an external PNG (`glow.png`, one texel of
-/// linear 0.5 as sRGB 188) times `emissiveFactor` 1, its buffer external too (`scene.bin`): the
-/// glTF JSON, the buffer and the image. `version` is written as `asset.version`.
-fn glowing_quad_gltf(version: &str) -> (Vec<u8>, Vec<u8>, Vec<u8>) {
-    let mut b = SceneBuilder::new();
-    let m = b.material([0.0; 3], [1.0; 3], false);
-    b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
-    let mut glb = Glb::parse(&b.to_glb());
-    glb.set_uvs(0, |p| [p[0], p[1]]);
-    glb.push_array("images", json!({"uri": "glow.png"}));
-    let t = glb.push_array("textures", json!({"source": 0}));
-    glb.json["materials"][0]["emissiveTexture"] = json!({"index": t});
-    glb.json["asset"]["version"] = json!(version);
-    let _ = glb.glb_bytes();
-    glb.json["buffers"][0]["uri"] = json!("scene.bin");
-    let png = palette_image(&[[0.5; 3]], image::ImageFormat::Png);
-    (serde_json::to_vec(&glb.json).unwrap(), glb.bin.clone(), png)
-}
-
-/// The emitted radiance sRGB byte 188 decodes to.
-fn glow() -> f64 {
-    wavrad::scene::srgb_to_linear(188.0 / 255.0)
 }
 
 #[test]
@@ -746,114 +610,4 @@ fn the_cli_reads_images_next_to_a_gltf_and_refuses_gltf_1() {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// Over HTTP an image is a named part of a multipart upload (never a file of the server's): the
-/// texture is solved with; a missing part, an image that cannot be decoded and glTF 1.0 are 422s
-/// that name what to fix.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn an_upload_carries_its_images_as_named_parts() {
-    use wavrad::service::{Server, ServiceConfig};
-    let dir = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("textures-http");
-    let _ = std::fs::remove_dir_all(&dir);
-    let server = Server::bind(ServiceConfig::new(dir), "127.0.0.1:0".parse().unwrap())
-        .await
-        .unwrap();
-    let base = format!("http://{}", server.local_addr());
-    tokio::spawn(server.run_until(std::future::pending()));
-    let client = reqwest::Client::new();
-    let post = |parts: Vec<(&'static str, Vec<u8>)>| {
-        let client = client.clone();
-        let base = base.clone();
-        async move {
-            let refs: Vec<(&str, &str, &str, &[u8])> = parts
-                .iter()
-                .map(|(n, b)| (*n, *n, "application/octet-stream", b.as_slice()))
-                .collect();
-            let (content_type, body) = multipart(&refs);
-            client
-                .post(format!("{base}/v1/jobs?order=1"))
-                .header("content-type", content_type)
-                .body(body)
-                .send()
-                .await
-                .unwrap()
-        }
-    };
-    let (gltf, bin, png) = glowing_quad_gltf("2.0");
-    let response = post(vec![
-        ("scene", gltf.clone()),
-        ("scene.bin", bin.clone()),
-        ("glow.png", png.clone()),
-    ])
-    .await;
-    assert_eq!(response.status(), 202);
-    let job: Value = response.json().await.unwrap();
-    let id = job["id"].as_str().unwrap().to_owned();
-    let start = std::time::Instant::now();
-    loop {
-        let job: Value = client
-            .get(format!("{base}/v1/jobs/{id}"))
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap();
-        if job["state"] == "succeeded" {
-            break;
-        }
-        assert!(job["state"] != "failed", "{job}");
-        assert!(start.elapsed().as_secs() < 60, "{job}");
-        tokio::time::sleep(std::time::Duration::from_millis(50)).await;
-    }
-    let result: Value = client
-        .get(format!("{base}/v1/jobs/{id}/result"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
-    let mean = result["faces"][0]["mean_radiance"][0].as_f64().unwrap();
-    assert!(
-        (mean - glow()).abs() < 1e-6,
-        "emission {mean}, texture {}",
-        glow()
-    );
-
-    let (old, _, _) = glowing_quad_gltf("1.0");
-    let refusals = [
-        (
-            vec![("scene", gltf.clone()), ("scene.bin", bin.clone())],
-            "glow.png",
-        ),
-        (
-            vec![
-                ("scene", gltf.clone()),
-                ("scene.bin", bin.clone()),
-                ("glow.png", b"GIF89a not a png".to_vec()),
-            ],
-            "image 0",
-        ),
-        (
-            vec![
-                ("scene", old),
-                ("scene.bin", bin.clone()),
-                ("glow.png", png.clone()),
-            ],
-            "asset.version",
-        ),
-    ];
-    for (parts, needle) in refusals {
-        let response = post(parts).await;
-        assert_eq!(response.status(), 422, "{needle}");
-        let error: Value = response.json().await.unwrap();
-        let message = error["error"]["message"]
-            .as_str()
-            .or(error["message"].as_str())
-            .unwrap_or_default()
-            .to_owned();
-        assert!(message.contains(needle), "{needle}: {error}");
-    }
 }
