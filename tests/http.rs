@@ -101,14 +101,15 @@ async fn submit_ok(client: &Client, base: &str, query: &str, glb: Vec<u8>) -> Va
     job
 }
 
-async fn get_job(client: &Client, base: &str, id: &str) -> Value {
-    let response = client
-        .get(format!("{base}/v1/jobs/{id}"))
-        .send()
-        .await
-        .unwrap();
+/// GETs `url`, expects 200 and returns the JSON body.
+async fn get_ok(client: &Client, url: String) -> Value {
+    let response = client.get(url).send().await.unwrap();
     assert_eq!(response.status(), StatusCode::OK);
     response.json().await.unwrap()
+}
+
+async fn get_job(client: &Client, base: &str, id: &str) -> Value {
+    get_ok(client, format!("{base}/v1/jobs/{id}")).await
 }
 
 /// Polls the job until its state is `state`; panics after `timeout`.
@@ -229,13 +230,7 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
     assert!(done["progress"]["iterations"].as_u64().unwrap() > 0);
     assert_eq!(done["links"]["self"], format!("/v1/jobs/{id}"));
 
-    let result = client
-        .get(format!("{base}/v1/jobs/{id}/result"))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(result.status(), StatusCode::OK);
-    let result: Value = result.json().await.unwrap();
+    let result = get_ok(&client, format!("{base}/v1/jobs/{id}/result")).await;
     assert_eq!(result["scene"]["triangles"], 12);
     assert_eq!(result["params"]["order"], 1);
     let page = &result["atlas"]["pages"][0];
@@ -264,14 +259,7 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
         .unwrap();
     error_of(missing, StatusCode::NOT_FOUND).await;
 
-    let convergence: Value = client
-        .get(format!("{base}/v1/jobs/{id}/convergence"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let convergence = get_ok(&client, format!("{base}/v1/jobs/{id}/convergence")).await;
     let rows = convergence["rows"].as_array().unwrap();
     assert!(!rows.is_empty());
     for key in ["seconds", "unshot_ratio", "elements", "links"] {
@@ -1694,14 +1682,7 @@ async fn an_upload_carries_its_images_as_named_parts() {
     let job: Value = response.json().await.unwrap();
     let id = job["id"].as_str().unwrap();
     wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
-    let result: Value = client
-        .get(format!("{base}/v1/jobs/{id}/result"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let result = get_ok(&client, format!("{base}/v1/jobs/{id}/result")).await;
     let mean = result["faces"][0]["mean_radiance"][0].as_f64().unwrap();
     let glow = common::glow();
     assert!(
