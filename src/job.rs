@@ -5,10 +5,11 @@
 //! [`run_job_with_probes`]), so they produce the same files; the service keeps the solution to
 //! answer probe requests.
 
+use crate::fsutil::write_atomic;
 use crate::output::probes::{evaluate_probes, ProbePoint, ProbeValue};
 use crate::output::solution_file::{self, SolutionFileError};
-use crate::output::{write_atomic, write_outputs, OutputOptions};
-use crate::pipeline::bake;
+use crate::output::{write_outputs, OutputOptions};
+use crate::pipeline::{bake, prepare};
 use crate::scene::{Scene, SceneError};
 use crate::solver::{Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE};
 use serde::{Deserialize, Serialize};
@@ -196,11 +197,13 @@ impl ProbeSource {
     /// The solution saved at `path` by [`ProbeSource::save`] for `scene`, the job's scene (its
     /// element roots are rebuilt from it and checked against the file).
     pub fn load(path: &Path, scene: &Scene) -> Result<ProbeSource, SolutionFileError> {
-        let loaded = solution_file::load(path, scene)?;
+        let saved = solution_file::read(path)?;
+        let mode = saved.mode();
+        let prepared = prepare(scene, mode);
         Ok(ProbeSource {
-            solution: loaded.solution,
-            diagonal: loaded.diagonal,
-            mode: loaded.mode,
+            solution: saved.attach(prepared.roots)?,
+            diagonal: prepared.diagonal,
+            mode,
         })
     }
 }
@@ -250,8 +253,10 @@ pub fn run_job_keeping_solution(
     let options = OutputOptions {
         texels_per_meter: params.texels_per_meter,
         exr_float: params.exr_float,
+        domain: params.domain_mode(),
+        params: serde_json::to_value(params).unwrap_or(serde_json::Value::Null),
     };
-    let result = write_outputs(out_dir, scene, &prepared, &solution, params, &options)?;
+    let result = write_outputs(out_dir, scene, &prepared, &solution, &options)?;
     if let Some(probes) = probes {
         let values = evaluate_probes(&solution, probes, prepared.diagonal);
         let text = serde_json::to_vec_pretty(&values).map_err(std::io::Error::other)?;

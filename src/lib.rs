@@ -13,6 +13,7 @@
 pub mod cli;
 pub mod domain;
 pub mod faces;
+pub mod fsutil;
 pub mod job;
 pub mod output;
 pub mod pipeline;

@@ -10,9 +10,9 @@ pub mod atlas;
 pub mod probes;
 pub mod solution_file;
 
-use crate::domain::{clamp_to_shape, plane_coordinates, Frame, Side, StBox, Surface};
+use crate::domain::{clamp_to_shape, plane_coordinates, DomainMode, Frame, Side, StBox, Surface};
 use crate::faces::FaceSet;
-use crate::job::JobParams;
+use crate::fsutil::{write_atomic, write_atomic_with};
 use crate::pipeline::Prepared;
 use crate::scene::Scene;
 use crate::solver::{Progress, Solution};
@@ -20,54 +20,20 @@ use atlas::{default_density, Atlas, AtlasRect, GUTTER};
 use glam::DVec2;
 use rayon::prelude::*;
 use serde_json::{json, Value};
-use std::io::Write;
 use std::path::Path;
 
-/// Output settings that are not solver parameters.
+/// What the outputs need besides the solution: atlas settings, the domain mode the roots were
+/// built with, and the job's parameters as result.json echoes them.
 #[derive(Debug, Clone, Default)]
 pub struct OutputOptions {
+    /// Lightmap density; `None` picks one from the scene's size ([`atlas::default_density`]).
     pub texels_per_meter: Option<f64>,
+    /// 32-bit float EXR pages instead of half floats.
     pub exr_float: bool,
-}
-
-/// A temporary name beside `path`, unique per process and call (so concurrent writers never share one).
-fn temporary_path(path: &Path) -> std::path::PathBuf {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("file");
-    path.with_file_name(format!(".{name}.{}.{n}.tmp", std::process::id()))
-}
-
-/// Makes a rename in `path`'s directory durable (fsync of the directory; a no-op where unsupported).
-fn sync_parent(path: &Path) -> std::io::Result<()> {
-    if let Some(dir) = path.parent() {
-        let dir = if dir.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            dir
-        };
-        if let Ok(d) = std::fs::File::open(dir) {
-            d.sync_all()?;
-        }
-    }
-    Ok(())
-}
-
-/// Writes `bytes` to `path` atomically: temporary file, fsync, rename, fsync of the directory.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = temporary_path(path);
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        sync_parent(path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+    /// The mode the roots were built with (result.json counts extended faces that fell back).
+    pub domain: DomainMode,
+    /// result.json's `params`, written as given.
+    pub params: Value,
 }
 
 /// The process's peak resident memory (VmHWM) in bytes, 0 where unknown.
@@ -279,24 +245,22 @@ fn write_exr(
     texels: &[[f32; 4]],
     float: bool,
 ) -> std::io::Result<()> {
-    let tmp = temporary_path(path);
     let w = width as usize;
-    let result = if float {
-        exr::prelude::write_rgba_file(&tmp, w, height as usize, |x, y| {
-            let t = texels[y * w + x];
-            (t[0], t[1], t[2], t[3])
-        })
-    } else {
-        exr::prelude::write_rgba_file(&tmp, w, height as usize, |x, y| {
-            let t = texels[y * w + x];
-            let h = half::f16::from_f32;
-            (h(t[0]), h(t[1]), h(t[2]), h(t[3]))
-        })
-    };
-    result.map_err(|e| std::io::Error::other(e.to_string()))?;
-    std::fs::File::open(&tmp)?.sync_all()?;
-    std::fs::rename(&tmp, path)?;
-    sync_parent(path)
+    write_atomic_with(path, |tmp| {
+        let result = if float {
+            exr::prelude::write_rgba_file(tmp, w, height as usize, |x, y| {
+                let t = texels[y * w + x];
+                (t[0], t[1], t[2], t[3])
+            })
+        } else {
+            exr::prelude::write_rgba_file(tmp, w, height as usize, |x, y| {
+                let t = texels[y * w + x];
+                let h = half::f16::from_f32;
+                (h(t[0]), h(t[1]), h(t[2]), h(t[3]))
+            })
+        };
+        result.map_err(|e| std::io::Error::other(e.to_string()))
+    })
 }
 
 /// Exposure of the preview: the 99th percentile of covered texel luminance maps to 0.9.
@@ -388,7 +352,6 @@ pub fn write_outputs(
     scene: &Scene,
     prepared: &Prepared,
     solution: &Solution,
-    params: &JobParams,
     options: &OutputOptions,
 ) -> std::io::Result<Value> {
     let frames: Vec<Frame> = prepared.surfaces.iter().map(|s| s.frame).collect();
@@ -450,7 +413,7 @@ pub fn write_outputs(
         .map(|r| r.face.0)
         .collect();
     masked_faces.dedup();
-    let extended_tessellated = if params.domain == crate::job::DomainMode::Extended {
+    let extended_tessellated = if options.domain == DomainMode::Extended {
         extended_faces - masked_faces.len().min(extended_faces)
     } else {
         0
@@ -473,7 +436,7 @@ pub fn write_outputs(
             "lights": scene.lights.len(),
             "area": prepared.faces.faces.iter().map(|f| f.area_m2).sum::<f64>(),
         },
-        "params": serde_json::to_value(params).unwrap_or(Value::Null),
+        "params": options.params.clone(),
         "warnings": warnings,
         "stats": {
             "seconds": stats.seconds, "iterations": stats.iterations, "elements": stats.elements,

@@ -5,9 +5,9 @@
 //! Only what evaluation needs is stored: the parameters that change a value (order, quantity,
 //! indirect-only, and the domain mode that decides the roots), and per root its hierarchy's nodes
 //! (map, depth, first child) with the coefficient arrays `h` and `hd`. The element roots are not
-//! stored: [`load`] rebuilds them with [`prepare`] from the job's scene (deterministic: fixed
-//! hashers and seeds, ordered reductions), checks them against a fingerprint stored in the file,
-//! and recomputes the covers of extended roots ([`Solution::from_saved`]).
+//! stored: the job layer rebuilds them from the job's scene and [`SavedSolution::attach`] checks
+//! them against a fingerprint stored in the file and recomputes the covers of extended roots
+//! ([`Solution::from_saved`]). This module only encodes and decodes.
 //!
 //! Format (little-endian), version [`FORMAT_VERSION`]:
 //! ```text
@@ -22,8 +22,7 @@
 //! scene's roots is refused with a [`SolutionFileError`]; reading never panics on its content.
 
 use crate::domain::{DomainMode, ElementRoot, Shape, Side};
-use crate::pipeline::prepare;
-use crate::scene::Scene;
+use crate::fsutil::write_atomic_with;
 use crate::solver::basis::ChildMap;
 use crate::solver::hierarchy::{Hierarchy, Node};
 use crate::solver::{Quantity, Solution, SolverParams};
@@ -64,14 +63,6 @@ impl SolutionFileError {
     pub fn is_missing(&self) -> bool {
         matches!(self, SolutionFileError::Io(e) if e.kind() == io::ErrorKind::NotFound)
     }
-}
-
-/// A loaded solution with the scene diagonal probes are located with and its domain mode.
-#[derive(Debug)]
-pub struct LoadedSolution {
-    pub solution: Solution,
-    pub diagonal: f64,
-    pub mode: DomainMode,
 }
 
 /// FNV-1a, 64 bits.
@@ -192,20 +183,12 @@ pub fn encode(solution: &Solution, mode: DomainMode, out: impl Write) -> io::Res
 
 /// Saves `solution` to `path` atomically (temporary file, fsync, rename, fsync of the directory).
 pub fn save(path: &Path, solution: &Solution, mode: DomainMode) -> io::Result<()> {
-    let tmp = super::temporary_path(path);
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
+    write_atomic_with(path, |tmp| {
+        let file = std::fs::File::create(tmp)?;
         let mut out = BufWriter::with_capacity(1 << 20, file);
         encode(solution, mode, &mut out)?;
-        let file = out.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
-        std::fs::rename(&tmp, path)?;
-        super::sync_parent(path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
+        out.flush()
+    })
 }
 
 /// Bounds-checked little-endian reads.
@@ -261,6 +244,7 @@ impl<'a> Reader<'a> {
 }
 
 /// What the file holds before the roots are rebuilt.
+#[derive(Debug)]
 struct Parsed {
     params: SolverParams,
     mode: DomainMode,
@@ -392,50 +376,63 @@ fn parse(bytes: &[u8]) -> Result<Parsed, SolutionFileError> {
     })
 }
 
-/// Rebuilds the solution saved in `bytes` for `scene` (the scene the job solved): parses and
-/// checks the file, rebuilds the roots with [`prepare`] and checks them against the file.
-pub fn decode(bytes: &[u8], scene: &Scene) -> Result<LoadedSolution, SolutionFileError> {
-    let parsed = parse(bytes)?;
-    let prepared = prepare(scene, parsed.mode);
-    let roots = prepared.roots;
-    if roots.len() != parsed.hierarchies.len() {
-        return Err(SolutionFileError::Mismatch(format!(
-            "{} element roots saved, {} rebuilt",
-            parsed.hierarchies.len(),
-            roots.len()
-        )));
+/// A solution file parsed and checked on its own, waiting for the element roots it was solved
+/// on. The job layer rebuilds them from the job's scene with the file's [`SavedSolution::mode`]
+/// (`pipeline::prepare` is deterministic: fixed hashers and seeds, ordered reductions) and hands
+/// them to [`SavedSolution::attach`], which checks them against the file.
+#[derive(Debug)]
+pub struct SavedSolution(Parsed);
+
+impl SavedSolution {
+    /// The domain mode the saved roots were built with.
+    pub fn mode(&self) -> DomainMode {
+        self.0.mode
     }
-    if let Some(i) = (0..roots.len()).find(|&i| shape_code(roots[i].shape) != parsed.shapes[i]) {
-        return Err(SolutionFileError::Mismatch(format!(
-            "root {i} has another shape"
-        )));
+
+    /// The solution, on `roots` rebuilt from the job's scene; refused when they are not the
+    /// roots the file was saved with (count, shapes, fingerprint of geometry and materials).
+    pub fn attach(self, roots: Vec<ElementRoot>) -> Result<Solution, SolutionFileError> {
+        let parsed = self.0;
+        if roots.len() != parsed.hierarchies.len() {
+            return Err(SolutionFileError::Mismatch(format!(
+                "{} element roots saved, {} rebuilt",
+                parsed.hierarchies.len(),
+                roots.len()
+            )));
+        }
+        if let Some(i) = (0..roots.len()).find(|&i| shape_code(roots[i].shape) != parsed.shapes[i])
+        {
+            return Err(SolutionFileError::Mismatch(format!(
+                "root {i} has another shape"
+            )));
+        }
+        if roots_fingerprint(&roots) != parsed.fingerprint {
+            return Err(SolutionFileError::Mismatch(
+                "the roots' geometry or materials differ".into(),
+            ));
+        }
+        Solution::from_saved(roots, parsed.hierarchies, parsed.params)
+            .map_err(SolutionFileError::Corrupt)
     }
-    if roots_fingerprint(&roots) != parsed.fingerprint {
-        return Err(SolutionFileError::Mismatch(
-            "the roots' geometry or materials differ".into(),
-        ));
-    }
-    let solution = Solution::from_saved(roots, parsed.hierarchies, parsed.params)
-        .map_err(SolutionFileError::Corrupt)?;
-    Ok(LoadedSolution {
-        solution,
-        diagonal: prepared.diagonal,
-        mode: parsed.mode,
-    })
 }
 
-/// Reads and decodes the solution file at `path` for `scene`.
-pub fn load(path: &Path, scene: &Scene) -> Result<LoadedSolution, SolutionFileError> {
-    let bytes = std::fs::read(path)?;
-    decode(&bytes, scene)
+/// Parses and checks a saved solution (magic, version, checksum, structure).
+pub fn decode(bytes: &[u8]) -> Result<SavedSolution, SolutionFileError> {
+    parse(bytes).map(SavedSolution)
+}
+
+/// Reads and decodes the solution file at `path`.
+pub fn read(path: &Path) -> Result<SavedSolution, SolutionFileError> {
+    decode(&std::fs::read(path)?)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::output::probes::{evaluate_probes, ProbePoint};
-    use crate::pipeline::bake;
+    use crate::pipeline::{bake, prepare};
     use crate::scene::gltf_writer::SceneBuilder;
+    use crate::scene::Scene;
     use crate::scene::{load_scene, ExternalFiles};
     use glam::DVec3;
     use std::sync::atomic::AtomicBool;
@@ -476,6 +473,22 @@ mod tests {
         bake(scene, mode, params, &AtomicBool::new(false), &mut |_| {})
             .expect("bakes")
             .1
+    }
+
+    /// What the job layer does with a file: decode, rebuild the roots, attach them.
+    #[derive(Debug)]
+    struct Loaded {
+        solution: Solution,
+        diagonal: f64,
+    }
+
+    fn decode_for(bytes: &[u8], scene: &Scene) -> Result<Loaded, SolutionFileError> {
+        let saved = decode(bytes)?;
+        let prepared = prepare(scene, saved.mode());
+        Ok(Loaded {
+            solution: saved.attach(prepared.roots)?,
+            diagonal: prepared.diagonal,
+        })
     }
 
     fn encoded(solution: &Solution, mode: DomainMode) -> Vec<u8> {
@@ -525,7 +538,7 @@ mod tests {
                 assert!(solved.hierarchies.iter().any(|h| h.nodes.len() > 1));
             }
             let bytes = encoded(&solved, mode);
-            let loaded = decode(&bytes, &scene).expect("decodes");
+            let loaded = decode_for(&bytes, &scene).expect("decodes");
             let back = &loaded.solution;
             assert_eq!(loaded.diagonal, scene.diagonal());
             assert_eq!(back.params.order, order);
@@ -560,7 +573,7 @@ mod tests {
         let scene = scene();
         let solved = solve(&scene, DomainMode::Extended, 2, Quantity::Radiance);
         let bytes = encoded(&solved, DomainMode::Extended);
-        let refuse = |b: &[u8]| decode(b, &scene).expect_err("refused");
+        let refuse = |b: &[u8]| decode_for(b, &scene).expect_err("refused");
         assert!(matches!(refuse(&[]), SolutionFileError::BadMagic));
         let mut wrong_magic = bytes.clone();
         wrong_magic[0] = b'X';
@@ -607,10 +620,10 @@ mod tests {
         let m = b.material([0.5; 3], [1.0; 3], false);
         b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
         let other = load_scene(&b.to_glb(), &ExternalFiles::Refuse, 10).unwrap();
-        let e = decode(&bytes, &other).expect_err("another scene");
+        let e = decode_for(&bytes, &other).expect_err("another scene");
         assert!(matches!(e, SolutionFileError::Mismatch(_)), "{e}");
         // A missing file says so.
-        let e = load(Path::new("/nonexistent/solution.bin"), &scene).expect_err("missing");
+        let e = read(Path::new("/nonexistent/solution.bin")).expect_err("missing");
         assert!(e.is_missing());
     }
 
@@ -643,7 +656,7 @@ mod tests {
             std::fs::read(&path).unwrap(),
             encoded(&solved, DomainMode::Extended)
         );
-        load(&path, &scene).unwrap();
+        decode_for(&std::fs::read(&path).unwrap(), &scene).unwrap();
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

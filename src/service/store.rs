@@ -16,7 +16,7 @@
 //! This is the shape of the `JobStore` interface of DESIGN.md section 8; a database-backed store
 //! would implement the same operations.
 
-use crate::output::write_atomic;
+use crate::fsutil::write_atomic;
 use serde::{Deserialize, Serialize};
 use std::collections::hash_map::RandomState;
 use std::collections::{BTreeMap, HashMap};
