@@ -13,7 +13,11 @@ COPY benches ./benches
 RUN cargo build --release --locked --bin wavrad
 
 FROM debian:bookworm-slim
-RUN useradd --system --uid 10001 --home /data wavrad \
+# curl answers the health check (GET /healthz); the slim image has no HTTP client of its own.
+RUN apt-get update \
+    && apt-get install -y --no-install-recommends curl ca-certificates \
+    && rm -rf /var/lib/apt/lists/* \
+    && useradd --system --uid 10001 --home /data wavrad \
     && mkdir -p /data && chown wavrad /data
 COPY --from=build /src/target/release/wavrad /usr/local/bin/wavrad
 COPY --from=build /src/scenes /usr/share/wavrad/scenes
@@ -21,6 +25,6 @@ USER wavrad
 VOLUME ["/data"]
 EXPOSE 8080
 ENV RUST_LOG=info
-HEALTHCHECK --interval=30s --timeout=3s CMD ["/usr/local/bin/wavrad", "--version"]
+HEALTHCHECK --interval=30s --timeout=3s --start-period=10s CMD ["curl", "-fsS", "http://127.0.0.1:8080/healthz"]
 ENTRYPOINT ["/usr/local/bin/wavrad"]
 CMD ["serve", "--addr", "0.0.0.0:8080", "--data-dir", "/data"]

@@ -127,7 +127,8 @@ pub struct FacesArgs {
 
 #[derive(Args, Debug)]
 pub struct ServeArgs {
-    #[arg(long, env = "WAVRAD_ADDR", default_value = "127.0.0.1:8080")]
+    /// Address to listen on: HOST:PORT, where HOST is an IP address or a name such as localhost.
+    #[arg(long, env = "WAVRAD_ADDR", default_value = "127.0.0.1:8080", value_parser = listen_address)]
     pub addr: std::net::SocketAddr,
     #[arg(long, env = "WAVRAD_DATA_DIR", default_value = "./wavrad-data")]
     pub data_dir: PathBuf,
@@ -235,6 +236,9 @@ fn solve(a: SolveArgs) -> ExitCode {
             Err(e) => return bad_input(format!("{}: {e}", path.display())),
         },
     };
+    if let Err(e) = check_out_dir(&a.out) {
+        return bad_input(e);
+    }
     let scene = match load(&a.scene, a.max_triangles) {
         Ok(s) => s,
         Err(code) => return code,
@@ -365,6 +369,38 @@ fn print_faces(
     out.flush()
 }
 
+/// `--addr`: HOST:PORT with HOST an IP address or a name (`localhost:8080`), resolved to its first
+/// IPv4 address when it has one (`tests::listen_addresses_accept_names`).
+fn listen_address(text: &str) -> Result<std::net::SocketAddr, String> {
+    use std::net::ToSocketAddrs;
+    let hint = "give HOST:PORT, e.g. 127.0.0.1:8080 or localhost:8080";
+    let addrs: Vec<_> = text
+        .to_socket_addrs()
+        .map_err(|e| format!("{text}: {e}; {hint}"))?
+        .collect();
+    addrs
+        .iter()
+        .find(|a| a.is_ipv4())
+        .or(addrs.first())
+        .copied()
+        .ok_or_else(|| format!("{text} resolves to no address; {hint}"))
+}
+
+/// `solve --out`: the directory is created and must take a file, checked before the solve so a
+/// long bake never fails at its end for want of a writable directory (`tests::out_dir_is_checked`).
+fn check_out_dir(dir: &std::path::Path) -> Result<(), String> {
+    let fail = |e: std::io::Error| {
+        format!(
+            "--out {}: {e}; give a directory wavrad can create and write",
+            dir.display()
+        )
+    };
+    std::fs::create_dir_all(dir).map_err(fail)?;
+    let probe = dir.join(format!(".wavrad-write-check.{}", std::process::id()));
+    std::fs::write(&probe, b"").map_err(fail)?;
+    std::fs::remove_file(&probe).map_err(fail)
+}
+
 fn serve(a: ServeArgs) -> ExitCode {
     let mut config = crate::service::ServiceConfig::new(a.data_dir);
     config.workers = a.workers;
@@ -414,6 +450,40 @@ fn serve(a: ServeArgs) -> ExitCode {
 mod tests {
     use super::*;
     use clap::CommandFactory;
+
+    #[test]
+    fn listen_addresses_accept_names() {
+        assert_eq!(
+            listen_address("127.0.0.1:8080").unwrap(),
+            "127.0.0.1:8080".parse().unwrap()
+        );
+        let local = listen_address("localhost:8080").unwrap();
+        assert!(local.ip().is_loopback() && local.port() == 8080, "{local}");
+        let e = listen_address("localhost").unwrap_err();
+        assert!(e.contains("HOST:PORT"), "{e}");
+        let parsed = Cli::try_parse_from(["wavrad", "serve", "--addr", "localhost:0"]);
+        assert!(parsed.is_ok(), "{parsed:?}");
+    }
+
+    #[test]
+    fn out_dir_is_checked() {
+        let base = std::env::temp_dir().join(format!("wavrad-out-check-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&base);
+        let nested = base.join("a/b");
+        check_out_dir(&nested).expect("created");
+        assert!(nested.is_dir());
+        assert_eq!(
+            std::fs::read_dir(&nested).unwrap().count(),
+            0,
+            "no probe file left"
+        );
+        // A path under a regular file cannot be a directory: refused, naming the path.
+        let file = base.join("file");
+        std::fs::write(&file, b"x").unwrap();
+        let e = check_out_dir(&file.join("out")).unwrap_err();
+        assert!(e.contains("--out") && e.contains("file/out"), "{e}");
+        let _ = std::fs::remove_dir_all(&base);
+    }
 
     /// Every option of `wavrad serve` (every limit is one) is documented in the README.
     #[test]
