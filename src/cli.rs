@@ -1,4 +1,4 @@
-//! The command line (CONTRACT "Command line"): `solve`, `faces`, `serve`.
+//! The command line (docs/contract.md, "Command line"): `solve`, `faces`, `serve`.
 //!
 //! Machine output (JSON) goes to stdout only; logs and the progress bar to stderr. Exit codes:
 //! 0 success, 2 bad input or bad options (one-line reason on stderr), 1 internal failure.
@@ -12,7 +12,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 
-/// Default limit on triangles per scene (CONTRACT: 5 million).
+/// Default limit on triangles per scene (docs/contract.md: 5 million).
 pub const DEFAULT_MAX_TRIANGLES: usize = 5_000_000;
 
 #[derive(Parser, Debug)]
@@ -118,7 +118,7 @@ impl SolverArgs {
 #[derive(Args, Debug)]
 pub struct FacesArgs {
     pub scene: PathBuf,
-    /// Print the faces as JSON (CONTRACT "faces --json").
+    /// Print the faces as JSON (docs/contract.md, "faces --json").
     #[arg(long)]
     pub json: bool,
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]

@@ -1,4 +1,4 @@
-//! A bake job: validated parameters (the CONTRACT's solver options, same names on the command line
+//! A bake job: validated parameters (the solver options of docs/contract.md, same names on the command line
 //! and over HTTP), and `run_job`, which solves a loaded scene and writes every output file.
 //!
 //! Both the CLI (`wavrad solve`) and the service run [`run_job_keeping_solution`] (the CLI through
@@ -34,7 +34,7 @@ pub enum QuantityParam {
     Irradiance,
 }
 
-/// Job parameters with CONTRACT names and defaults.
+/// Job parameters with the names of docs/contract.md and defaults.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct JobParams {

@@ -1,7 +1,7 @@
 //! Outputs of a solve: the lightmap atlas (EXR pages), result.json and convergence.csv, and the
 //! `faces --json` document. Reads the solution; never changes it.
 //!
-//! Texel conventions (CONTRACT): texel `(i, j)` of a root's rectangle covers `s` in `[i/w, (i+1)/w]`
+//! Texel conventions (docs/contract.md): texel `(i, j)` of a root's rectangle covers `s` in `[i/w, (i+1)/w]`
 //! and `t` in `[j/h, (j+1)/h]` (rows from the top of the image); its value is the solution at the
 //! texel centre (clamped into the element, so gutters and texels outside a triangle repeat the
 //! nearest face value and bilinear filtering never bleeds black); alpha is the texel's coverage.

@@ -1,4 +1,4 @@
-//! Probes: the solution evaluated at user points (CONTRACT "Probe points file").
+//! Probes: the solution evaluated at user points (docs/contract.md, "Probe points file").
 //!
 //! A probe is located on the element root whose plane passes within `PROBE_DISTANCE_REL * diagonal`
 //! of the point, whose side's normal agrees with the probe normal, and whose shape contains the

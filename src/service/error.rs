@@ -1,4 +1,4 @@
-//! The one HTTP error type, rendered as the CONTRACT's error JSON
+//! The one HTTP error type, rendered as the error JSON of docs/contract.md
 //! `{"error": {"code": "snake_case", "message": "..."}}`, and the safety nets that give every other
 //! failure (panics, timeouts, middleware rejections) the same shape.
 

@@ -1,5 +1,5 @@
 //! Extractors that wrap axum's and turn their rejections into [`ApiError`], so a request refused
-//! before any handler runs still gets the CONTRACT's error JSON.
+//! before any handler runs still gets the error JSON of docs/contract.md.
 
 use super::error::ApiError;
 use axum::extract::{FromRequestParts, Path, Query};

@@ -44,7 +44,7 @@ impl JobState {
     }
 }
 
-/// The CONTRACT's progress object.
+/// The progress object of docs/contract.md.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ProgressView {
     /// Unshot power / emitted power (1 before the first shot).

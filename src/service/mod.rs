@@ -1,9 +1,9 @@
-//! `wavrad serve`: the HTTP job service (CONTRACT "HTTP API (v1)", DESIGN.md section 8).
+//! `wavrad serve`: the HTTP job service (docs/contract.md, "HTTP API (v1)", docs/design.md section 8).
 //!
 //! - [`api_routes`] is the table of every route; [`app`] builds the router from it (a test checks
 //!   it against `api/openapi.yaml`, served at `/v1/openapi.json`); [`Server`] binds and serves;
 //!   [`serve`] does both and stops on Ctrl-C or SIGTERM.
-//! - Errors: one type, [`ApiError`], rendered as the CONTRACT's error JSON; extractors are wrapped
+//! - Errors: one type, [`ApiError`], rendered as the error JSON of docs/contract.md; extractors are wrapped
 //!   ([`extract`]) and a last middleware rewrites any other error response into that shape.
 //!   Middleware: optional bearer token on `/v1`, in-flight limit (503), timeout (408).
 //! - Jobs ([`jobs`]): a bounded queue feeding `workers` runners ([`runner`]) that solve on a
@@ -52,7 +52,7 @@ use tower_http::catch_panic::CatchPanicLayer;
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::{DefaultMakeSpan, DefaultOnResponse, TraceLayer};
 
-/// Data directory when none is given (CONTRACT "Names").
+/// Data directory when none is given (docs/contract.md, "Names").
 pub const DEFAULT_DATA_DIR: &str = "./wavrad-data";
 /// One job at a time by default: a solve already uses every core.
 pub const DEFAULT_WORKERS: usize = 1;
@@ -87,7 +87,7 @@ pub const DEFAULT_MAX_IN_FLIGHT: usize = 1024;
 /// most `max_body_bytes`); further uploads wait for a slot.
 pub const DEFAULT_MAX_CONCURRENT_UPLOADS: usize = 4;
 
-/// Settings of the service (CONTRACT `wavrad serve` options).
+/// Settings of the service (docs/contract.md, `wavrad serve` options).
 #[derive(Clone, PartialEq, Eq)]
 #[non_exhaustive]
 pub struct ServiceConfig {

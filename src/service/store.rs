@@ -13,7 +13,7 @@
 //! Deleting a job renames its directory into `data_dir/trash/` (atomic: the job is there or it is
 //! not) and removes it from there; whatever a crash leaves in the trash is removed at the next start.
 //!
-//! This is the shape of the `JobStore` interface of DESIGN.md section 8; a database-backed store
+//! This is the shape of the `JobStore` interface of docs/design.md section 8; a database-backed store
 //! would implement the same operations.
 
 use crate::fsutil::write_atomic;
