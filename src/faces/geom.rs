@@ -1,6 +1,6 @@
 //! Plane geometry shared by the face builder, the validator and the triangulator, and the crate's
 //! one copy of the exact 2D predicates ([`orient`], [`on_segment`], [`signed_area`],
-//! [`locate_by_winding`]), which `crate::domain::predicates` re-exports (faces sit below the
+//! [`locate_by_winding`]), which the domain's `predicates` re-exports (faces sit below the
 //! domain, so the domain uses them, never the other way).
 //!
 //! Owns [`Projection`], the map from a face's plane to 2D that drops the normal's dominant axis.
@@ -171,7 +171,7 @@ pub enum Location {
 /// on any ring's edge (by [`on_segment`]), else inside when the rings' total winding number is
 /// non-zero. A repeated vertex (zero-length edge) is no edge, as in the domain's trapezoidal map.
 /// The one point-in-polygon test of the crate: the face validator asks it about one ring, the
-/// extended domain (`crate::domain::extended::locate_by_winding`) about a face's rings. Pinned by
+/// extended domain (re-exported as `extended::locate_by_winding`) about a face's rings. Pinned by
 /// `locate_handles_inside_outside_and_boundary` here and the domain's property tests against an
 /// even-odd twin.
 pub fn locate_by_winding<R: AsRef<[DVec2]>>(rings: &[R], p: DVec2) -> Location {

@@ -592,9 +592,42 @@ impl Builder {
             if let (Some(l), Some(r)) = (t.leftp, t.rightp) {
                 assert!(lex_less(l, r), "trapezoid {i}: walls out of order");
             }
-            let check = |n: u32, back: fn(&Trapezoid) -> u32, same: bool, what: &str| {
+            // Each neighbour: its link back, whether it shares the boundary segment and wall point.
+            type Side<'a> = (
+                u32,
+                fn(&Trapezoid) -> u32,
+                fn(&Trapezoid, &Trapezoid) -> bool,
+                &'a str,
+            );
+            let sides: [Side; 4] = [
+                (
+                    t.upper_left,
+                    |x| x.upper_right,
+                    |t, nb| nb.top == t.top && nb.rightp == t.leftp,
+                    "upper left",
+                ),
+                (
+                    t.lower_left,
+                    |x| x.lower_right,
+                    |t, nb| nb.bottom == t.bottom && nb.rightp == t.leftp,
+                    "lower left",
+                ),
+                (
+                    t.upper_right,
+                    |x| x.upper_left,
+                    |t, nb| nb.top == t.top && nb.leftp == t.rightp,
+                    "upper right",
+                ),
+                (
+                    t.lower_right,
+                    |x| x.lower_left,
+                    |t, nb| nb.bottom == t.bottom && nb.leftp == t.rightp,
+                    "lower right",
+                ),
+            ];
+            for (n, back, shares, what) in sides {
                 if n == NONE {
-                    return;
+                    continue;
                 }
                 let nb = &self.trapezoids[n as usize];
                 assert!(nb.alive, "trapezoid {i}: {what} neighbour {n} is dead");
@@ -604,44 +637,8 @@ impl Builder {
                     "trapezoid {i}: {what} neighbour {n} does not link back"
                 );
                 assert!(
-                    same,
+                    shares(t, nb),
                     "trapezoid {i}: {what} neighbour {n} shares no boundary segment"
-                );
-            };
-            if t.upper_left != NONE {
-                let nb = &self.trapezoids[t.upper_left as usize];
-                check(
-                    t.upper_left,
-                    |x| x.upper_right,
-                    nb.top == t.top && nb.rightp == t.leftp,
-                    "upper left",
-                );
-            }
-            if t.lower_left != NONE {
-                let nb = &self.trapezoids[t.lower_left as usize];
-                check(
-                    t.lower_left,
-                    |x| x.lower_right,
-                    nb.bottom == t.bottom && nb.rightp == t.leftp,
-                    "lower left",
-                );
-            }
-            if t.upper_right != NONE {
-                let nb = &self.trapezoids[t.upper_right as usize];
-                check(
-                    t.upper_right,
-                    |x| x.upper_left,
-                    nb.top == t.top && nb.leftp == t.rightp,
-                    "upper right",
-                );
-            }
-            if t.lower_right != NONE {
-                let nb = &self.trapezoids[t.lower_right as usize];
-                check(
-                    t.lower_right,
-                    |x| x.lower_left,
-                    nb.bottom == t.bottom && nb.leftp == t.rightp,
-                    "lower right",
                 );
             }
         }
