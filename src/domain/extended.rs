@@ -19,9 +19,14 @@
 //! reports it). This is the front side's domain: a back side's frame swaps `u` and `v`, so its
 //! `(s, t)` is this domain's `(t, s)`. Units: metres and square metres in world space.
 
+/// Exact point location by winding number (Sunday's crossing rule with exact orientation), the
+/// boundary first; inside means a non-zero winding number; a repeated vertex is no edge (as in
+/// the trapezoidal map). The face geometry's test, shared with the face validator.
+pub use crate::faces::geom::locate_by_winding;
+
 use super::coverage::{box_coverage, Coverage, StBox};
 use super::parallelogram::min_area_parallelogram;
-use super::predicates::{on_segment, orient, signed_area};
+use super::predicates::{orient, signed_area};
 use super::trapezoidal_map::{Location, MapError, TrapezoidalMap};
 use super::{plane_coordinates, Frame};
 use glam::{DVec2, DVec3};
@@ -377,34 +382,4 @@ fn clean_ring(points: impl Iterator<Item = DVec2>, outer: bool) -> Option<Vec<DV
         ring.reverse();
     }
     Some(ring)
-}
-
-/// Exact point location by winding number (Sunday's crossing rule with exact orientation), the
-/// boundary first. Inside means a non-zero winding number.
-pub fn locate_by_winding(rings: &[Vec<DVec2>], p: DVec2) -> Location {
-    let mut winding = 0i64;
-    for ring in rings {
-        let n = ring.len();
-        for i in 0..n {
-            let (a, b) = (ring[i], ring[(i + 1) % n]);
-            if a == b {
-                continue; // A repeated vertex is no edge (as in the trapezoidal map).
-            }
-            if on_segment(a, b, p) {
-                return Location::Boundary;
-            }
-            if a.y <= p.y {
-                if b.y > p.y && orient(a, b, p) > 0.0 {
-                    winding += 1;
-                }
-            } else if b.y <= p.y && orient(a, b, p) < 0.0 {
-                winding -= 1;
-            }
-        }
-    }
-    if winding != 0 {
-        Location::Inside
-    } else {
-        Location::Outside
-    }
 }

@@ -1,4 +1,7 @@
-//! Plane geometry shared by the face builder, the validator and the triangulator.
+//! Plane geometry shared by the face builder, the validator and the triangulator, and the crate's
+//! one copy of the exact 2D predicates ([`orient`], [`on_segment`], [`signed_area`],
+//! [`locate_by_winding`]), which the domain's `predicates` re-exports (faces sit below the
+//! domain, so the domain uses them, never the other way).
 //!
 //! Owns [`Projection`], the map from a face's plane to 2D that drops the normal's dominant axis.
 //! It copies two coordinates unchanged (no rounding), so the exact orientation predicate
@@ -120,7 +123,9 @@ impl Projection {
 }
 
 /// Exact orientation of `c` relative to the directed line `a -> b`: positive when `a, b, c` turn
-/// counter-clockwise, negative when clockwise, zero when collinear.
+/// counter-clockwise (`c` left of / above `a -> b`), negative when clockwise, zero when collinear.
+/// Only the sign is meaningful.
+#[inline]
 pub fn orient(a: DVec2, b: DVec2, c: DVec2) -> f64 {
     robust::orient2d(
         robust::Coord { x: a.x, y: a.y },
@@ -143,6 +148,7 @@ pub fn signed_area(ring: &[DVec2]) -> f64 {
 }
 
 /// True when `p` lies on the closed segment `[a, b]` (exact).
+#[inline]
 pub fn on_segment(a: DVec2, b: DVec2, p: DVec2) -> bool {
     orient(a, b, p) == 0.0
         && p.x >= a.x.min(b.x)
@@ -151,30 +157,43 @@ pub fn on_segment(a: DVec2, b: DVec2, p: DVec2) -> bool {
         && p.y <= a.y.max(b.y)
 }
 
-/// Where a point is relative to a closed ring.
+/// Where a point is relative to closed rings (the face's point-location answer).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Location {
     Inside,
     Outside,
+    /// Exactly on a ring vertex or edge.
     Boundary,
 }
 
-/// Locates `p` relative to a ring of either orientation (exact winding number).
-pub fn locate(p: DVec2, ring: &[DVec2]) -> Location {
-    let n = ring.len();
+/// Exact point location by winding number over closed rings of either orientation (Sunday's
+/// crossing rule with exact [`orient`]), the boundary first: [`Location::Boundary`] when `p` lies
+/// on any ring's edge (by [`on_segment`]), else inside when the rings' total winding number is
+/// non-zero. A repeated vertex (zero-length edge) is no edge, as in the domain's trapezoidal map.
+/// The one point-in-polygon test of the crate: the face validator asks it about one ring, the
+/// extended domain (re-exported as `extended::locate_by_winding`) about a face's rings. Pinned by
+/// `locate_handles_inside_outside_and_boundary` here and the domain's property tests against an
+/// even-odd twin.
+pub fn locate_by_winding<R: AsRef<[DVec2]>>(rings: &[R], p: DVec2) -> Location {
     let mut winding = 0i64;
-    for i in 0..n {
-        let a = ring[i];
-        let b = ring[(i + 1) % n];
-        if on_segment(a, b, p) {
-            return Location::Boundary;
-        }
-        if a.y <= p.y {
-            if b.y > p.y && orient(a, b, p) > 0.0 {
-                winding += 1;
+    for ring in rings {
+        let ring = ring.as_ref();
+        let n = ring.len();
+        for i in 0..n {
+            let (a, b) = (ring[i], ring[(i + 1) % n]);
+            if a == b {
+                continue;
             }
-        } else if b.y <= p.y && orient(a, b, p) < 0.0 {
-            winding -= 1;
+            if on_segment(a, b, p) {
+                return Location::Boundary;
+            }
+            if a.y <= p.y {
+                if b.y > p.y && orient(a, b, p) > 0.0 {
+                    winding += 1;
+                }
+            } else if b.y <= p.y && orient(a, b, p) < 0.0 {
+                winding -= 1;
+            }
         }
     }
     if winding != 0 {
@@ -237,6 +256,7 @@ mod tests {
             DVec2::new(2.0, 2.0),
             DVec2::new(0.0, 2.0),
         ];
+        let locate = |p: DVec2, ring: &[DVec2]| locate_by_winding(&[ring], p);
         assert_eq!(locate(DVec2::new(1.0, 1.0), &sq), Location::Inside);
         assert_eq!(locate(DVec2::new(3.0, 1.0), &sq), Location::Outside);
         assert_eq!(locate(DVec2::new(2.0, 1.0), &sq), Location::Boundary);

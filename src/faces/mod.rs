@@ -29,7 +29,7 @@
 
 mod adjacency;
 pub mod contact;
-mod geom;
+pub(crate) mod geom;
 pub mod overlap;
 mod rings;
 pub mod triangulate;

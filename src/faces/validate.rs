@@ -14,7 +14,9 @@
 //! Ring numbers in problems: 0 is the outer ring, `h + 1` is hole `h`. Turn, crossing and
 //! containment tests are exact in the face's [`Projection`]; no problem ever panics.
 
-use super::geom::{locate, on_segment, orient, signed_area, FastSet, Location, Projection};
+use super::geom::{
+    locate_by_winding, on_segment, orient, signed_area, FastSet, Location, Projection,
+};
 #[cfg(test)]
 use super::FaceKind;
 use super::{classify, Face, FaceId, FaceSet};
@@ -539,7 +541,7 @@ fn sample_location(ring: &[DVec2], other: &[DVec2]) -> Option<Location> {
         .copied()
         .chain((0..l).map(|i| 0.5 * (ring[i] + ring[(i + 1) % l])));
     for p in samples {
-        match locate(p, other) {
+        match locate_by_winding(&[other], p) {
             Location::Boundary => continue,
             loc => return Some(loc),
         }

@@ -4,20 +4,15 @@
 //! accessor reads go through bounds-checked readers, node graphs are walked with a visited set
 //! (cycles are reported, not followed), and the whole parse runs under `catch_unwind` as a last line.
 
+use super::buffers::load_buffers;
 pub use super::buffers::ExternalFiles;
-use super::buffers::{load_buffers, read_uri};
 use super::error::{Problem, SceneError};
-use super::texture::{dimensions, Texture, TextureSlot, UvTransform, Wrap};
+use super::gltf_textures::{read_textures, read_uv_sets, texture_slot};
 use super::{
     LightKind, Material, PunctualLight, Scene, Triangle, TriangleSource, TriangleTexcoords,
 };
-use glam::{DMat4, DVec2, DVec3};
-use rayon::prelude::*;
+use glam::{DMat4, DVec3};
 use std::path::Path;
-
-/// Most texels all of a scene's base colour and emissive textures may hold together (a limit on
-/// the memory an upload can claim: 12 bytes a texel once decoded).
-pub const MAX_SCENE_TEXELS: u64 = 1 << 26;
 
 /// Deepest node nesting followed; deeper is reported as a problem (protects the stack).
 const MAX_NODE_DEPTH: usize = 256;
@@ -400,121 +395,6 @@ fn check_version(asset: &gltf::json::Asset) -> Result<(), SceneError> {
     Ok(())
 }
 
-fn wrap_of(mode: gltf::texture::WrappingMode) -> Wrap {
-    use gltf::texture::WrappingMode as M;
-    match mode {
-        M::Repeat => Wrap::Repeat,
-        M::MirroredRepeat => Wrap::MirroredRepeat,
-        M::ClampToEdge => Wrap::ClampToEdge,
-    }
-}
-
-/// A texture before decoding: its index, its place for messages, its wrap modes, its bytes (or why
-/// they could not be read).
-type EncodedTexture = (usize, String, [Wrap; 2], Result<Vec<u8>, String>);
-
-/// Decodes every texture a material uses as its base colour or emissive texture (others, such as
-/// normal maps, are not read). Returns the decoded textures and, per glTF texture index, its
-/// index among them. An image that cannot be read or decoded is a problem naming it.
-fn read_textures(
-    document: &gltf::Document,
-    buffers: &[Vec<u8>],
-    external: &ExternalFiles,
-    problems: &mut Vec<Problem>,
-) -> (Vec<std::sync::Arc<Texture>>, Vec<Option<u32>>) {
-    let mut used = vec![false; document.textures().len()];
-    for m in document.materials() {
-        let infos = [
-            m.pbr_metallic_roughness().base_color_texture(),
-            m.emissive_texture(),
-        ];
-        for info in infos.into_iter().flatten() {
-            used[info.texture().index()] = true;
-        }
-    }
-    // The encoded images first, with their declared sizes: the scene's total is bounded before
-    // anything is decoded.
-    let mut total_texels = 0u64;
-    let sources: Vec<EncodedTexture> = document
-        .textures()
-        .filter(|t| used[t.index()])
-        .map(|t| {
-            let image = t.source();
-            let place = match image.name() {
-                Some(n) => format!("image {} ('{n}')", image.index()),
-                None => format!("image {}", image.index()),
-            };
-            let sampler = t.sampler();
-            let wrap = [wrap_of(sampler.wrap_s()), wrap_of(sampler.wrap_t())];
-            let bytes = match image.source() {
-                gltf::image::Source::View { view, .. } => buffers
-                    .get(view.buffer().index())
-                    .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
-                    .map(<[u8]>::to_vec)
-                    .ok_or_else(|| "its bufferView runs past its buffer".to_string()),
-                gltf::image::Source::Uri { uri, .. } => read_uri(uri, external),
-            };
-            if let Ok((w, h)) = bytes.as_deref().map_err(Clone::clone).and_then(dimensions) {
-                total_texels += u64::from(w) * u64::from(h);
-            }
-            (t.index(), place, wrap, bytes)
-        })
-        .collect();
-    if total_texels > MAX_SCENE_TEXELS {
-        problems.push(Problem {
-            place: "textures".into(),
-            message: format!(
-                "the base colour and emissive textures hold {total_texels} texels in all, more than the {MAX_SCENE_TEXELS} accepted: scale them down"
-            ),
-        });
-        return (Vec::new(), vec![None; used.len()]);
-    }
-    let decoded: Vec<(usize, Result<Texture, Problem>)> = sources
-        .into_par_iter()
-        .map(|(index, place, wrap, bytes)| {
-            let texture = bytes
-                .and_then(|b| Texture::decode(&b, &place, wrap))
-                .map_err(|message| Problem {
-                    place: format!("{place} (texture {index})"),
-                    message,
-                });
-            (index, texture)
-        })
-        .collect();
-    let mut textures = Vec::new();
-    let mut texture_of = vec![None; used.len()];
-    for (index, result) in decoded {
-        match result {
-            Ok(t) => {
-                texture_of[index] = Some(textures.len() as u32);
-                textures.push(std::sync::Arc::new(t));
-            }
-            Err(p) => problems.push(p),
-        }
-    }
-    (textures, texture_of)
-}
-
-fn texture_slot(info: &gltf::texture::Info, texture_of: &[Option<u32>]) -> Option<TextureSlot> {
-    let texture = texture_of.get(info.texture().index()).copied().flatten()?;
-    let (tex_coord, transform) = match info.texture_transform() {
-        Some(t) => (
-            t.tex_coord().unwrap_or(info.tex_coord()),
-            UvTransform {
-                offset: DVec2::from(t.offset().map(f64::from)),
-                rotation: f64::from(t.rotation()),
-                scale: DVec2::from(t.scale().map(f64::from)),
-            },
-        ),
-        None => (info.tex_coord(), UvTransform::IDENTITY),
-    };
-    Some(TextureSlot {
-        texture,
-        tex_coord,
-        transform,
-    })
-}
-
 fn read_materials(
     document: &gltf::Document,
     texture_of: &[Option<u32>],
@@ -695,53 +575,6 @@ fn read_mesh(
             texcoords.push(uv);
         }
     }
-}
-
-/// Per texture slot (base colour, emissive) of a primitive's material, the texture coordinates of
-/// each vertex with the slot's transform applied (empty for a slot without a texture). A
-/// `TEXCOORD_n` a texture needs that the primitive lacks, or whose count or values are wrong, is
-/// a problem (`None`): a texture is never silently dropped.
-fn read_uv_sets(
-    primitive: &gltf::Primitive,
-    buffers: &[Vec<u8>],
-    place: &str,
-    slots: [Option<TextureSlot>; 2],
-    vertices: usize,
-    problems: &mut Vec<Problem>,
-) -> Option<[Vec<DVec2>; 2]> {
-    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
-    let mut sets: [Vec<DVec2>; 2] = Default::default();
-    let names = ["baseColorTexture", "emissiveTexture"];
-    for (k, slot) in slots.iter().enumerate() {
-        let Some(slot) = slot else { continue };
-        let set = slot.tex_coord;
-        let Some(read) = reader.read_tex_coords(set) else {
-            problems.push(Problem {
-                place: place.to_owned(),
-                message: format!(
-                    "its material's {} reads TEXCOORD_{set}, which the primitive lacks (or its accessor runs past its buffer)",
-                    names[k]
-                ),
-            });
-            return None;
-        };
-        let uvs: Vec<DVec2> = read
-            .into_f32()
-            .map(|[u, v]| slot.transform.apply(DVec2::new(f64::from(u), f64::from(v))))
-            .collect();
-        if uvs.len() != vertices || uvs.iter().any(|p| !p.is_finite()) {
-            problems.push(Problem {
-                place: place.to_owned(),
-                message: format!(
-                    "TEXCOORD_{set} has {} values for {vertices} vertices, or a NaN/infinite one",
-                    uvs.len()
-                ),
-            });
-            return None;
-        }
-        sets[k] = uvs;
-    }
-    Some(sets)
 }
 
 /// At most this many problems are listed per primitive; the rest are counted in one more line.

@@ -14,6 +14,7 @@
 mod buffers;
 mod error;
 mod gltf_import;
+mod gltf_textures;
 pub mod gltf_writer;
 mod texture;
 

@@ -1,12 +1,13 @@
 //! Textures: base-colour and emissive images decoded to linear RGB, the sampler's wrap modes, and
 //! a material's texture slot (which `TEXCOORD_n` set, which `KHR_texture_transform`).
 //!
-//! Owns [`Texture`] (decode, bilinear [`Texture::sample`]), [`Wrap`], [`TextureSlot`] and
-//! [`UvTransform`]. Invariants: texels are linear (glTF stores both colour textures in sRGB, decoded
-//! here with the exact sRGB transfer function), finite and in `[0, 1]`; a texture has at least one
-//! texel; sampling never panics, whatever the coordinates (NaN included: it reads texel 0).
-//! Alpha is ignored (surfaces are opaque to light). Pinned by the unit tests below: sRGB values,
-//! wrap modes against hand-computed texel indices, bilinear weights, the transform's order.
+//! Owns [`Texture`] (decode, bilinear [`Texture::sample`]), [`ImageHeader`] (format and size,
+//! read once before decoding), [`Wrap`], [`TextureSlot`] and [`UvTransform`]. Invariants: texels
+//! are linear (glTF stores both colour textures in sRGB, decoded here with the exact sRGB transfer
+//! function), finite and in `[0, 1]`; a texture has at least one texel; sampling never panics,
+//! whatever the coordinates (NaN included: it reads texel 0). Alpha is ignored (surfaces are
+//! opaque to light). Pinned by the unit tests below: sRGB values, wrap modes against hand-computed
+//! texel indices, bilinear weights, the transform's order.
 
 use super::Rgb;
 use glam::DVec2;
@@ -92,20 +93,73 @@ fn format_of(bytes: &[u8]) -> Result<image::ImageFormat, String> {
     Ok(format)
 }
 
-/// The width and height an image's header declares, without decoding it.
-pub fn dimensions(bytes: &[u8]) -> Result<(u32, u32), String> {
-    let format = format_of(bytes)?;
-    image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
-        .into_dimensions()
-        .map_err(|e| format!("cannot be decoded: {e}"))
+/// What an image's header declares, read without decoding it: its format (PNG or JPEG) and size.
+/// Read once per image: the importer bounds the scene's texels with it, then decodes by it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ImageHeader {
+    format: image::ImageFormat,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl ImageHeader {
+    /// Reads the header of a PNG or JPEG image, else says why it cannot be read.
+    pub fn read(bytes: &[u8]) -> Result<ImageHeader, String> {
+        let format = format_of(bytes)?;
+        let (width, height) = image::ImageReader::with_format(std::io::Cursor::new(bytes), format)
+            .into_dimensions()
+            .map_err(|e| format!("cannot be decoded: {e}"))?;
+        Ok(ImageHeader {
+            format,
+            width,
+            height,
+        })
+    }
+
+    /// Texels the header declares.
+    pub fn texels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+}
+
+/// sRGB-encoded colour samples (RGB triples, each sample in `0..=max`) to linear texels, through a
+/// table of every sample value: 8-bit images with `max = 255`, 16-bit ones with `65535` (they keep
+/// their precision).
+fn linear_texels<S: Copy + Into<u16>>(samples: &[S], max: S) -> Vec<[f32; 3]> {
+    let max: u16 = max.into();
+    let lut: Vec<f32> = (0..=max)
+        .map(|v| srgb_to_linear(f64::from(v) / f64::from(max)) as f32)
+        .collect();
+    samples
+        .chunks_exact(3)
+        .map(|p| {
+            [p[0], p[1], p[2]].map(|c| {
+                let c: u16 = c.into();
+                lut[usize::from(c)]
+            })
+        })
+        .collect()
 }
 
 impl Texture {
     /// Decodes a PNG or JPEG image whose colour channels are sRGB-encoded.
     pub fn decode(bytes: &[u8], name: &str, wrap: [Wrap; 2]) -> Result<Texture, String> {
-        let format = format_of(bytes)?;
-        let (width, height) = dimensions(bytes)?;
-        if width == 0 || height == 0 || u64::from(width) * u64::from(height) > MAX_TEXELS {
+        Texture::decode_with_header(bytes, ImageHeader::read(bytes)?, name, wrap)
+    }
+
+    /// [`Texture::decode`] of an image whose header was read already.
+    pub fn decode_with_header(
+        bytes: &[u8],
+        header: ImageHeader,
+        name: &str,
+        wrap: [Wrap; 2],
+    ) -> Result<Texture, String> {
+        let ImageHeader {
+            format,
+            width,
+            height,
+        } = header;
+        if width == 0 || height == 0 || header.texels() > MAX_TEXELS {
             return Err(format!(
                 "is {width} x {height} texels: empty, or more than the {MAX_TEXELS} accepted"
             ));
@@ -115,7 +169,7 @@ impl Texture {
         limits.max_image_width = Some(width);
         limits.max_image_height = Some(height);
         // RGBA16, the largest decoded form, plus the decoder's own buffers.
-        limits.max_alloc = Some(u64::from(width) * u64::from(height) * 8 + (16 << 20));
+        limits.max_alloc = Some(header.texels() * 8 + (16 << 20));
         reader.limits(limits);
         let decoded = reader
             .decode()
@@ -131,23 +185,9 @@ impl Texture {
                 | image::ColorType::L16
                 | image::ColorType::La16
         ) {
-            let lut: Vec<f32> = (0..=u16::MAX)
-                .map(|v| srgb_to_linear(f64::from(v) / 65535.0) as f32)
-                .collect();
-            decoded
-                .to_rgb16()
-                .pixels()
-                .map(|p| p.0.map(|c| lut[c as usize]))
-                .collect()
+            linear_texels(decoded.to_rgb16().as_raw(), u16::MAX)
         } else {
-            let lut: Vec<f32> = (0..=255u8)
-                .map(|v| srgb_to_linear(f64::from(v) / 255.0) as f32)
-                .collect();
-            decoded
-                .to_rgb8()
-                .pixels()
-                .map(|p| p.0.map(|c| lut[c as usize]))
-                .collect()
+            linear_texels(decoded.to_rgb8().as_raw(), u8::MAX)
         };
         Ok(Texture::from_texels(name, width, height, texels, wrap))
     }

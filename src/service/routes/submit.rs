@@ -1,0 +1,359 @@
+//! `POST /v1/jobs`: a job's submission. Validates the parameters, the `Idempotency-Key`, the
+//! content type and length, reads the body (a scene, or multipart with the scene and its external
+//! files) under the upload limit, loads and checks the scene, estimates the memory, stores the
+//! job and queues it. Invariant: a job is on disk before its 202 is sent, and a submission that
+//! is refused leaves nothing behind (a job that does not fit the queue is discarded).
+
+use crate::job::{estimated_memory_bytes, JobParams};
+use crate::pipeline::check_solvable;
+use crate::scene::{load_scene, ExternalFiles};
+use crate::service::error::{clip, ApiError};
+use crate::service::extract::ApiQuery;
+use crate::service::jobs::{Job, JobStatus};
+use crate::service::{AppState, RETRY_AFTER_SECONDS};
+use axum::body::Bytes;
+use axum::extract::multipart::MultipartError;
+use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::http::{header, HeaderMap, HeaderName, HeaderValue, StatusCode};
+use axum::response::{IntoResponse, Response};
+use axum::Json;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::time::SystemTime;
+
+/// Content types accepted for a scene upload: GLB (two names), then glTF JSON (two names).
+const ACCEPTED_SCENE_TYPES: [&str; 4] = [
+    "model/gltf-binary",
+    "application/octet-stream",
+    "model/gltf+json",
+    "application/json",
+];
+
+/// `POST /v1/jobs`: validate parameters and scene, store the job, queue it; 202 with the job.
+/// With an `Idempotency-Key` a retried POST gets the job the first one created.
+pub async fn create_job(
+    State(state): State<AppState>,
+    ApiQuery(mut params): ApiQuery<JobParams>,
+    request: Request,
+) -> Result<Response, ApiError> {
+    params.validate().map_err(ApiError::bad_parameters)?;
+    if let Some(cap) = state.config().max_job_seconds {
+        let cap = cap as f64;
+        params.max_seconds = Some(params.max_seconds.map_or(cap, |s| s.min(cap)));
+    }
+    let key = idempotency_key(request.headers())?;
+    if let Some(job) = key.as_deref().and_then(|k| state.jobs().by_key(k)) {
+        return Ok(replay(&job));
+    }
+    let kind = check_content_type(request.headers())?;
+    let max_body = state.config().max_body_bytes;
+    if let Some(length) = content_length(request.headers()) {
+        if length > max_body as u64 {
+            return Err(too_large(max_body));
+        }
+    }
+    // Refuse before receiving the body when the queue is already full (checked again on enqueue).
+    if !state.jobs().has_room() {
+        return Err(queue_full(&state));
+    }
+    let _permit = state
+        .upload_permits()
+        .acquire()
+        .await
+        .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
+    let (body, parts) = match kind {
+        BodyKind::Scene => (read_body(request, max_body).await?, BTreeMap::new()),
+        BodyKind::Multipart => read_multipart(request, max_body).await?,
+    };
+
+    let max_triangles = state.config().max_triangles;
+    let max_memory = state.config().max_memory_bytes;
+    let order = params.order;
+    let checked = body.clone();
+    let parts = tokio::task::spawn_blocking(move || {
+        let external = if parts.is_empty() {
+            ExternalFiles::Refuse
+        } else {
+            ExternalFiles::Named(parts.into_iter().collect())
+        };
+        let scene = load_scene(&checked, &external, max_triangles)?;
+        check_solvable(&scene)?;
+        check_memory(scene.triangles.len(), order, max_memory)?;
+        Ok::<_, ApiError>(match external {
+            ExternalFiles::Named(parts) => parts.into_iter().collect(),
+            _ => BTreeMap::new(),
+        })
+    })
+    .await
+    .map_err(|e| ApiError::internal("the scene check failed", e))??;
+
+    // Keyed submissions are stored one at a time, so two concurrent retries make one job.
+    let _keyed = match &key {
+        Some(_) => Some(state.keyed_submissions().lock().await),
+        None => None,
+    };
+    if let Some(job) = key.as_deref().and_then(|k| state.jobs().by_key(k)) {
+        return Ok(replay(&job));
+    }
+    let created = SystemTime::now();
+    let store = state.store().clone();
+    let id = tokio::task::spawn_blocking(move || store.create_job_dir(created))
+        .await
+        .map_err(|e| ApiError::internal("storing the job failed", e))?
+        .map_err(|e| ApiError::internal("storing the job failed", e))?;
+    let job = Arc::new(Job::restore(
+        id,
+        created,
+        state.jobs().next_seq(),
+        params,
+        JobStatus::queued(),
+        key,
+    ));
+    let store = state.store().clone();
+    let stored = job.clone();
+    tokio::task::spawn_blocking(move || {
+        let written =
+            store.write_new_job(&stored.id, &body, &parts, &stored.params, &stored.record());
+        if written.is_err() {
+            store.discard(&stored.id);
+        }
+        written
+    })
+    .await
+    .map_err(|e| ApiError::internal("storing the job failed", e))?
+    .map_err(|e| ApiError::internal("storing the job failed", e))?;
+
+    if let Err(job) = state.jobs().enqueue(job.clone()) {
+        let store = state.store().clone();
+        let _ = tokio::task::spawn_blocking(move || store.discard(&job.id)).await;
+        return Err(queue_full(&state));
+    }
+    tracing::info!(job = %job.id, "job accepted");
+    Ok(accepted(&job))
+}
+
+/// Longest `Idempotency-Key` accepted.
+const MAX_IDEMPOTENCY_KEY: usize = 255;
+
+/// The `Idempotency-Key` header: 1 to 255 printable ASCII characters.
+fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
+    let Some(value) = headers.get("idempotency-key") else {
+        return Ok(None);
+    };
+    let text = value.to_str().ok().map(str::trim).unwrap_or("");
+    let valid = !text.is_empty()
+        && text.len() <= MAX_IDEMPOTENCY_KEY
+        && text.bytes().all(|c| c.is_ascii_graphic() || c == b' ');
+    if !valid {
+        return Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "bad_idempotency_key",
+            format!(
+                "Idempotency-Key must be 1 to {MAX_IDEMPOTENCY_KEY} printable ASCII characters \
+                 (a UUID is a good choice)"
+            ),
+        ));
+    }
+    Ok(Some(text.to_string()))
+}
+
+/// 202 with the job and its `Location`.
+fn accepted(job: &Job) -> Response {
+    let view = job.view();
+    let mut response = (StatusCode::ACCEPTED, Json(&view)).into_response();
+    if let Ok(location) = HeaderValue::from_str(&view.links.self_) {
+        response.headers_mut().insert(header::LOCATION, location);
+    }
+    response
+}
+
+/// The answer to a retried keyed POST: the job it created, as the first answer had it.
+fn replay(job: &Job) -> Response {
+    tracing::info!(job = %job.id, "idempotent retry: returning the existing job");
+    let mut response = accepted(job);
+    response.headers_mut().insert(
+        HeaderName::from_static("idempotent-replayed"),
+        HeaderValue::from_static("true"),
+    );
+    response
+}
+
+pub(super) async fn read_body(request: Request, max_body: usize) -> Result<Bytes, ApiError> {
+    match Bytes::from_request(request, &()).await {
+        Ok(body) => Ok(body),
+        Err(rejection) if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE => {
+            Err(too_large(max_body))
+        }
+        Err(rejection) => Err(ApiError::new(
+            StatusCode::BAD_REQUEST,
+            "body_unreadable",
+            format!(
+                "the request body could not be read: {}",
+                rejection.body_text()
+            ),
+        )),
+    }
+}
+
+/// Part of a multipart upload that holds the scene.
+const SCENE_PART: &str = "scene";
+
+/// A `multipart/form-data` upload: the part `scene`, and the files it references, each a part
+/// named by its URI (the part's name, else its file name).
+async fn read_multipart(
+    request: Request,
+    max_body: usize,
+) -> Result<(Bytes, BTreeMap<String, Vec<u8>>), ApiError> {
+    let bad = |message: String| ApiError::new(StatusCode::BAD_REQUEST, "bad_multipart", message);
+    let multipart_error = |e: MultipartError| {
+        if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            too_large(max_body)
+        } else {
+            bad(format!(
+                "the multipart body could not be read: {}",
+                e.body_text()
+            ))
+        }
+    };
+    let mut multipart = Multipart::from_request(request, &()).await.map_err(|e| {
+        bad(format!(
+            "not a readable multipart/form-data body: {}",
+            e.body_text()
+        ))
+    })?;
+    let mut scene = None;
+    let mut parts = BTreeMap::new();
+    while let Some(field) = multipart.next_field().await.map_err(multipart_error)? {
+        let name =
+            field
+                .name()
+                .filter(|n| !n.is_empty())
+                .or(field.file_name())
+                .map(str::to_string)
+                .ok_or_else(|| {
+                    bad("every part needs a name: 'scene' for the scene, the URI it uses for a file"
+                    .into())
+                })?;
+        let bytes = field.bytes().await.map_err(multipart_error)?;
+        if name == SCENE_PART {
+            if scene.replace(bytes).is_some() {
+                return Err(bad("the upload has two parts named 'scene'".into()));
+            }
+        } else if parts.insert(name.clone(), bytes.to_vec()).is_some() {
+            return Err(bad(format!(
+                "the upload has two parts named '{}'",
+                clip(&name, 100)
+            )));
+        }
+    }
+    let scene = scene.ok_or_else(|| {
+        bad(
+            "the multipart upload has no part named 'scene' (the .gltf or .glb); add it, and one \
+             part per file it references, named by its URI"
+                .into(),
+        )
+    })?;
+    Ok((scene, parts))
+}
+
+/// 422 when the solve's estimated memory exceeds `--max-memory-bytes`.
+fn check_memory(triangles: usize, order: usize, max_memory: u64) -> Result<(), ApiError> {
+    let estimate = estimated_memory_bytes(triangles, order);
+    if estimate <= max_memory {
+        return Ok(());
+    }
+    Err(ApiError::new(
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "memory_limit",
+        format!(
+            "solving {triangles} triangles at order {order} needs an estimated {estimate} bytes, \
+             more than this server allows per job ({max_memory} bytes, --max-memory-bytes); use a \
+             lower order, simplify the scene, or ask the operator to raise the limit"
+        ),
+    ))
+}
+
+/// What a POST body holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum BodyKind {
+    /// The scene itself (GLB or glTF JSON).
+    Scene,
+    /// `multipart/form-data`: the scene and the files it references.
+    Multipart,
+}
+
+fn check_content_type(headers: &HeaderMap) -> Result<BodyKind, ApiError> {
+    let given = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let essence = given
+        .as_deref()
+        .and_then(|v| v.split(';').next())
+        .map(|v| v.trim().to_ascii_lowercase());
+    if let Some(essence) = &essence {
+        if ACCEPTED_SCENE_TYPES.contains(&essence.as_str()) {
+            return Ok(BodyKind::Scene);
+        }
+        if essence == "multipart/form-data" {
+            return Ok(BodyKind::Multipart);
+        }
+    }
+    let what = match &given {
+        Some(v) => format!("content type '{}' is not accepted", clip(v, 100)),
+        None => "the request has no Content-Type".to_string(),
+    };
+    Err(ApiError::new(
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+        "unsupported_media_type",
+        format!(
+            "{what}; send the scene as model/gltf-binary (a GLB; also application/octet-stream) or \
+             model/gltf+json (a self-contained glTF with data URIs; also application/json), or \
+             multipart/form-data with a part 'scene' and one part per file it references"
+        ),
+    ))
+}
+
+fn content_length(headers: &HeaderMap) -> Option<u64> {
+    headers
+        .get(header::CONTENT_LENGTH)?
+        .to_str()
+        .ok()?
+        .trim()
+        .parse()
+        .ok()
+}
+
+fn too_large(max_body: usize) -> ApiError {
+    ApiError::new(
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "payload_too_large",
+        format!(
+            "the scene is larger than this server accepts ({max_body} bytes, --max-body-bytes); \
+             simplify it or ask the operator to raise the limit"
+        ),
+    )
+}
+
+fn queue_full(state: &AppState) -> ApiError {
+    ApiError::queue_full(state.jobs().max_queued(), RETRY_AFTER_SECONDS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn content_types() {
+        let mut h = HeaderMap::new();
+        assert!(check_content_type(&h).is_err());
+        h.insert(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("Model/glTF-Binary; x=1"),
+        );
+        assert!(check_content_type(&h).is_ok());
+        h.insert(header::CONTENT_TYPE, HeaderValue::from_static("text/plain"));
+        let e = check_content_type(&h).unwrap_err();
+        assert_eq!(e.status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
+        assert!(e.message.contains("model/gltf-binary"));
+    }
+}
