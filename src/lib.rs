@@ -13,12 +13,12 @@
 pub mod cli;
 pub mod domain;
 pub mod faces;
-pub mod fsutil;
+pub(crate) mod fsutil;
 pub mod job;
 pub mod output;
 pub mod pipeline;
 pub mod reference;
 pub mod scene;
 pub mod service;
-pub mod shuffle;
+pub(crate) mod shuffle;
 pub mod solver;

@@ -21,14 +21,14 @@
 //! solver asks). None of them knows faces, scenes or the solver except `extended` (which takes
 //! plain rings) and this file.
 
-pub mod coverage;
-pub mod extended;
-pub mod hull;
-pub mod mask;
-pub mod parallelogram;
-pub mod predicates;
-pub mod reflectance;
-pub mod trapezoidal_map;
+pub(crate) mod coverage;
+pub(crate) mod extended;
+pub(crate) mod hull;
+pub(crate) mod mask;
+pub(crate) mod parallelogram;
+pub(crate) mod predicates;
+pub(crate) mod reflectance;
+pub(crate) mod trapezoidal_map;
 
 #[cfg(test)]
 mod tests;

@@ -53,15 +53,6 @@ impl EnclosingParallelogram {
         let det = self.u.perp_dot(self.v);
         DVec2::new(q.perp_dot(self.v) / det, self.u.perp_dot(q) / det)
     }
-
-    pub fn point(&self, st: DVec2) -> DVec2 {
-        self.origin + self.u * st.x + self.v * st.y
-    }
-
-    /// Angle between `u` and `v`, radians in `(0, pi)`.
-    pub fn angle(&self) -> f64 {
-        self.u.angle_to(self.v).abs()
-    }
 }
 
 /// One hull edge direction (modulo pi) and the hull's width across it.

@@ -5,7 +5,7 @@
 //! point order `(x, then y)` that the trapezoidal map and the hull use as their "left of" (a
 //! symbolic shear, so vertical segments and equal x-coordinates need no special case).
 
-pub use crate::faces::geom::{on_segment, orient, signed_area};
+pub use crate::faces::geom::{orient, signed_area};
 use glam::DVec2;
 use std::cmp::Ordering;
 

@@ -28,12 +28,12 @@
 //! (exact projection and predicates).
 
 mod adjacency;
-pub mod contact;
+pub(crate) mod contact;
 pub(crate) mod geom;
-pub mod overlap;
+pub(crate) mod overlap;
 mod rings;
-pub mod triangulate;
-pub mod validate;
+pub(crate) mod triangulate;
+pub(crate) mod validate;
 mod weld;
 
 pub use triangulate::{triangulate_face, triangulate_polygon, TriangulateError};

@@ -6,9 +6,9 @@
 //! texel centre (clamped into the element, so gutters and texels outside a triangle repeat the
 //! nearest face value and bilinear filtering never bleeds black); alpha is the texel's coverage.
 
-pub mod atlas;
+pub(crate) mod atlas;
 pub mod probes;
-pub mod solution_file;
+pub(crate) mod solution_file;
 
 use crate::domain::{clamp_to_shape, plane_coordinates, DomainMode, Frame, Side, StBox, Surface};
 use crate::faces::FaceSet;

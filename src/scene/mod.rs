@@ -15,6 +15,9 @@ mod buffers;
 mod error;
 mod gltf_import;
 mod gltf_textures;
+/// `SceneBuilder`, a small GLB writer for tests: compiled for the crate's own unit tests and, with
+/// the `test-support` feature (which the integration tests turn on), for `tests/` and `benches/`.
+#[cfg(any(test, feature = "test-support"))]
 pub mod gltf_writer;
 mod texture;
 

@@ -17,15 +17,15 @@
 //!
 //! `GET /` is a small dashboard page (no external resources) that polls `GET /v1/jobs`.
 
-pub mod error;
-pub mod extract;
-pub mod jobs;
-pub mod metrics;
-pub mod recovery;
-pub mod routes;
-pub mod runner;
-pub mod store;
-pub mod time;
+pub(crate) mod error;
+pub(crate) mod extract;
+pub(crate) mod jobs;
+pub(crate) mod metrics;
+pub(crate) mod recovery;
+pub(crate) mod routes;
+pub(crate) mod runner;
+pub(crate) mod store;
+pub(crate) mod time;
 
 pub use error::ApiError;
 pub use jobs::{Job, JobBoard, JobState, JobView, ProgressView};

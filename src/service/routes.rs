@@ -9,10 +9,7 @@
 mod outputs;
 mod submit;
 
-pub use outputs::{
-    get_convergence, get_file, get_result, parse_convergence, post_probes, Convergence,
-    ConvergenceRow,
-};
+pub use outputs::{get_convergence, get_file, get_result, post_probes};
 pub use submit::create_job;
 
 use super::error::ApiError;
