@@ -117,7 +117,7 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
         assert!(rows[0][key].is_number(), "row.{key}");
     }
 
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list["jobs"][0]["id"], id.as_str());
 
     // A finished job is deleted with its files.
@@ -233,7 +233,7 @@ async fn a_full_queue_refuses_and_cancelled_jobs_end() {
     )
     .await;
 
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     let ids: Vec<&str> = list["jobs"]
         .as_array()
         .unwrap()
@@ -358,7 +358,7 @@ async fn an_idempotency_key_returns_the_job_it_created() {
     assert_eq!(a["id"], b["id"]);
     assert_ne!(a["id"], first["id"]);
 
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list["jobs"].as_array().unwrap().len(), 2);
 
     let bad = client

@@ -83,7 +83,7 @@ async fn requests_outside_the_contract_get_error_json() {
     error_of(response, StatusCode::UNPROCESSABLE_ENTITY).await;
 
     // Still alive and empty.
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list, json!({"jobs": []}));
 }
 

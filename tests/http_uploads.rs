@@ -92,7 +92,7 @@ async fn bad_scenes_are_refused_and_the_server_keeps_working() {
     assert_eq!(ok.status(), StatusCode::ACCEPTED);
 
     // Nothing refused was stored or listed.
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
 
     let health = get(&client, format!("{base}/healthz")).await;
@@ -226,7 +226,7 @@ async fn malformed_files_get_4xx_and_the_server_stays_up() {
         let health = get(&client, format!("{base}/healthz")).await;
         assert_eq!(health.status(), StatusCode::OK, "after {name}");
     }
-    let list: Value = list_jobs(&client, &base).await;
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list, json!({"jobs": []}), "no job was created");
 }
 
