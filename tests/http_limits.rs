@@ -11,8 +11,8 @@ use wavrad::service::ServiceConfig;
 mod common;
 use common::scenes::{never_converging_scene, one_triangle_gltf, small_scene, TRIANGLE};
 use common::service::{
-    client, data_dir, delete_job, error_of, expect_error, get, list_jobs, start, submit, submit_ok,
-    wait_for,
+    client, data_dir, delete_job, error_of, expect_error, expect_raw_error, get, list_jobs, start,
+    submit, submit_ok, wait_for,
 };
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -90,7 +90,7 @@ async fn requests_outside_the_contract_get_error_json() {
 /// A chunked upload has no Content-Length: the limit is enforced while reading, still as JSON 413.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_oversized_chunked_upload_is_refused() {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    use tokio::io::AsyncWriteExt;
     let mut config = ServiceConfig::new(data_dir("http-chunked"));
     config.max_body_bytes = 1024;
     let base = start(config).await;
@@ -104,16 +104,12 @@ async fn an_oversized_chunked_upload_is_refused() {
     request.extend(std::iter::repeat_n(b'x', 0x1000));
     request.extend_from_slice(b"\r\n0\r\n\r\n");
     stream.write_all(&request).await.unwrap();
-    let mut answer = Vec::new();
-    tokio::time::timeout(Duration::from_secs(10), stream.read_to_end(&mut answer))
-        .await
-        .expect("the server answers")
-        .unwrap();
-    let answer = String::from_utf8_lossy(&answer);
-    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
-    let body = &answer[answer.find("\r\n\r\n").unwrap() + 4..];
-    let body: Value = serde_json::from_str(body).unwrap();
-    assert_eq!(body["error"]["code"], "payload_too_large");
+    expect_raw_error(
+        &mut stream,
+        StatusCode::PAYLOAD_TOO_LARGE,
+        "payload_too_large",
+    )
+    .await;
 }
 
 /// Every limit is a named setting, and a refusal names it.
@@ -163,7 +159,7 @@ async fn limits_are_named_settings_and_refusals_name_them() {
 /// 408 when a request outlives `--request-timeout-seconds`, 500 when the store cannot be written.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn busy_timeout_and_internal_errors_are_json() {
-    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    use tokio::io::AsyncWriteExt;
     let dir = data_dir("http-rare");
     let mut config = ServiceConfig::new(&dir);
     config.max_in_flight = 1;
@@ -184,16 +180,7 @@ async fn busy_timeout_and_internal_errors_are_json() {
     assert!(busy.headers().contains_key("retry-after"));
     expect_error(busy, StatusCode::SERVICE_UNAVAILABLE, "server_busy").await;
 
-    let mut answer = Vec::new();
-    tokio::time::timeout(Duration::from_secs(10), slow.read_to_end(&mut answer))
-        .await
-        .expect("the slow request is answered")
-        .unwrap();
-    let answer = String::from_utf8_lossy(&answer);
-    assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
-    let body: Value =
-        serde_json::from_str(&answer[answer.find("\r\n\r\n").unwrap() + 4..]).unwrap();
-    assert_eq!(body["error"]["code"], "request_timeout");
+    expect_raw_error(&mut slow, StatusCode::REQUEST_TIMEOUT, "request_timeout").await;
 
     // The store's jobs directory turns into a file: storing a job fails, the server does not.
     std::fs::remove_dir_all(dir.join("jobs")).unwrap();

@@ -1,7 +1,8 @@
 //! Talking to the HTTP job service the way its tests do: a fresh data directory, an in-process
 //! server on 127.0.0.1 port 0, a client, submitting and polling jobs, reading results and probes,
 //! multipart bodies, and the checks of the CONTRACT's error JSON
-//! `{"error": {"code": "snake_case", "message": "..."}}` (`error_of`, `expect_error`).
+//! `{"error": {"code": "snake_case", "message": "..."}}` (`error_of`, `expect_error`, and
+//! `expect_raw_error` for requests written by hand on a socket).
 //!
 //! Every helper that expects success asserts the status it expects; none retries.
 
@@ -228,6 +229,30 @@ pub async fn expect_error(response: Response, status: StatusCode, code: &str) ->
     let error = error_of(response, status).await;
     assert_eq!(error["code"], code, "{url}: {error}");
     error
+}
+
+/// `expect_error` for a request written by hand on a raw socket: reads the answer to its end (10 s
+/// at most), checks its status line and the error JSON's `code`; returns the error object.
+pub async fn expect_raw_error(
+    stream: &mut tokio::net::TcpStream,
+    status: StatusCode,
+    code: &str,
+) -> Value {
+    use tokio::io::AsyncReadExt;
+    let mut answer = Vec::new();
+    tokio::time::timeout(Duration::from_secs(10), stream.read_to_end(&mut answer))
+        .await
+        .expect("the server answers")
+        .unwrap();
+    let answer = String::from_utf8_lossy(&answer);
+    assert!(
+        answer.starts_with(&format!("HTTP/1.1 {}", status.as_u16())),
+        "{answer}"
+    );
+    let body = &answer[answer.find("\r\n\r\n").unwrap() + 4..];
+    let body: Value = serde_json::from_str(body).unwrap();
+    assert_eq!(body["error"]["code"], code, "{answer}");
+    body["error"].clone()
 }
 
 /// A `multipart/form-data` body from (name, file name, content type, bytes) parts; returns the
