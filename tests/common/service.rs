@@ -4,7 +4,7 @@
 //! `{"error": {"code": "snake_case", "message": "..."}}` (`error_of`, `expect_error`, and
 //! `expect_raw_error` for requests written by hand on a socket).
 //!
-//! Every helper that expects success asserts the status it expects; none retries.
+//! Every helper that expects success asserts the status it expects; only the `wait_*` helpers poll.
 
 use reqwest::{Client, Response, StatusCode};
 use serde_json::Value;
