@@ -17,22 +17,13 @@ use wavrad::faces::{
 use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
 use wavrad::scene::{load_scene, ExternalFiles, Material, Scene, Triangle, TriangleSource};
 
+mod common;
+use common::faces::{merged, total_area};
+
 const LIMIT: usize = 5_000_000;
 
 fn load(glb: &[u8]) -> Scene {
     load_scene(glb, &ExternalFiles::Refuse, LIMIT).expect("hand-made scene loads")
-}
-
-/// Merges and checks the validator finds nothing.
-fn merged(scene: &Scene) -> FaceSet {
-    let faces = merge_planar_faces(scene);
-    let problems = validate_faces(&faces);
-    assert!(
-        problems.is_empty(),
-        "validator: {:#?}",
-        problems.iter().map(|p| p.to_string()).collect::<Vec<_>>()
-    );
-    faces
 }
 
 /// A point of the plane `origin + x u + y v` (front normal `u x v`).
@@ -63,10 +54,6 @@ fn mesh2d(b: &mut SceneBuilder, m: u32, plane: Plane, pts: &[(f64, f64)], tris: 
     let positions: Vec<DVec3> = pts.iter().map(|&(x, y)| plane.at(x, y)).collect();
     let indices: Vec<u32> = tris.iter().flatten().copied().collect();
     b.mesh(m, &positions, &indices);
-}
-
-fn total_area(f: &FaceSet) -> f64 {
-    f.faces.iter().map(|f| f.area_m2).sum()
 }
 
 #[test]

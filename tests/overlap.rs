@@ -12,26 +12,14 @@ use proptest::prelude::*;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use wavrad::domain::DomainMode;
-use wavrad::faces::{merge_planar_faces, validate_faces, FaceSet};
+use wavrad::faces::merge_planar_faces;
 use wavrad::pipeline::bake;
 use wavrad::scene::gltf_writer::SceneBuilder;
 use wavrad::scene::{load_scene, ExternalFiles, Material, Scene, Triangle, TriangleSource};
 use wavrad::solver::{Solution, SolverParams};
 
-fn merged(scene: &Scene) -> FaceSet {
-    let faces = merge_planar_faces(scene);
-    let problems = validate_faces(&faces);
-    assert!(
-        problems.is_empty(),
-        "validator: {:#?}",
-        problems.iter().map(|p| p.to_string()).collect::<Vec<_>>()
-    );
-    faces
-}
-
-fn total_area(f: &FaceSet) -> f64 {
-    f.faces.iter().map(|f| f.area_m2).sum()
-}
+mod common;
+use common::faces::{merged, total_area};
 
 /// A scene of triangles `(corners, material)`; materials: 0 single-sided, 1 single-sided (another
 /// material of the same values), 2 double-sided.

@@ -3,9 +3,11 @@
 
 use glam::DVec3;
 use serde_json::{json, Value};
-use std::process::Command;
 use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
 use wavrad::scene::{load_scene, ExternalFiles, SceneError};
+
+mod common;
+use common::cli::wavrad;
 
 const LIMIT: usize = 1_000_000;
 
@@ -232,24 +234,18 @@ fn cli_exits_2_with_a_one_line_reason_on_bad_input() {
     let bad = dir.join("truncated.glb");
     let glb = one_quad_glb();
     std::fs::write(&bad, &glb[..glb.len() / 2]).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
-        .args([
-            "solve",
-            bad.to_str().unwrap(),
-            "--out",
-            dir.join("out").to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let out = wavrad(&[
+        "solve",
+        bad.to_str().unwrap(),
+        "--out",
+        dir.join("out").to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("truncated"), "{stderr}");
     assert!(out.stdout.is_empty(), "stdout must stay clean on errors");
     // Bad option: exit 2 as well.
-    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
-        .args(["solve", bad.to_str().unwrap(), "--out", "x", "--order", "7"])
-        .output()
-        .unwrap();
+    let out = wavrad(&["solve", bad.to_str().unwrap(), "--out", "x", "--order", "7"]);
     assert_eq!(out.status.code(), Some(2));
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -265,18 +261,15 @@ fn cli_solve_writes_the_contract_outputs() {
     b.inward_box([w, w, w, e, w, w], DVec3::ZERO, DVec3::ONE, 1);
     std::fs::write(&scene, b.to_glb()).unwrap();
     let out_dir = dir.join("out");
-    let out = Command::new(env!("CARGO_BIN_EXE_wavrad"))
-        .args([
-            "solve",
-            scene.to_str().unwrap(),
-            "--out",
-            out_dir.to_str().unwrap(),
-            "--order",
-            "1",
-            "--json",
-        ])
-        .output()
-        .unwrap();
+    let out = wavrad(&[
+        "solve",
+        scene.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--order",
+        "1",
+        "--json",
+    ]);
     assert_eq!(
         out.status.code(),
         Some(0),

@@ -1,20 +1,19 @@
 //! Durability over real process restarts: the `wavrad serve` binary is started on port 0, killed
 //! abruptly (SIGKILL) or stopped (SIGTERM), and started again on the same data directory.
 
-use glam::DVec3;
-use reqwest::{Client, StatusCode};
-use serde_json::Value;
+use reqwest::StatusCode;
+use serde_json::{json, Value};
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-use wavrad::scene::gltf_writer::SceneBuilder;
 
-fn data_dir(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(format!("restart-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
+mod common;
+use common::scenes::{box_scene, never_converging_scene};
+use common::service::{
+    client, data_dir, expect_error, get, get_bytes, get_job, job_id, list_jobs, probe_ok,
+    submit_ok, submit_ok_keyed, wait_for, wait_until,
+};
 
 /// A running `wavrad serve` process and its base URL.
 struct Service {
@@ -71,100 +70,25 @@ impl Drop for Service {
     }
 }
 
-fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(30))
-        .build()
-        .unwrap()
-}
-
-fn box_scene(rho: f64, n: u32) -> Vec<u8> {
-    let mut b = SceneBuilder::new();
-    let wall = b.material([rho; 3], [0.0; 3], false);
-    let lamp = b.material([rho; 3], [1.0; 3], false);
-    b.inward_box(
-        [lamp, wall, wall, wall, wall, wall],
-        DVec3::ZERO,
-        DVec3::ONE,
-        n,
-    );
-    b.to_glb()
-}
-
-async fn submit(client: &Client, base: &str, query: &str, glb: Vec<u8>) -> String {
-    submit_keyed(client, base, query, glb, None).await
-}
-
-async fn submit_keyed(
-    client: &Client,
-    base: &str,
-    query: &str,
-    glb: Vec<u8>,
-    key: Option<&str>,
-) -> String {
-    let mut request = client
-        .post(format!("{base}/v1/jobs?{query}"))
-        .header("content-type", "model/gltf-binary");
-    if let Some(key) = key {
-        request = request.header("idempotency-key", key);
-    }
-    let r = request.body(glb).send().await.unwrap();
-    assert_eq!(r.status(), StatusCode::ACCEPTED);
-    let job: Value = r.json().await.unwrap();
-    job["id"].as_str().unwrap().to_string()
-}
-
-async fn job(client: &Client, base: &str, id: &str) -> Value {
-    let r = client
-        .get(format!("{base}/v1/jobs/{id}"))
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status(), StatusCode::OK, "job {id}");
-    r.json().await.unwrap()
-}
-
-async fn wait_until(
-    client: &Client,
-    base: &str,
-    id: &str,
-    timeout: Duration,
-    done: impl Fn(&Value) -> bool,
-) -> Value {
-    let start = Instant::now();
-    loop {
-        let j = job(client, base, id).await;
-        if done(&j) {
-            return j;
-        }
-        assert!(start.elapsed() < timeout, "job {id} stuck: {j}");
-        tokio::time::sleep(Duration::from_millis(50)).await;
-    }
-}
-
-async fn bytes(client: &Client, url: String) -> Vec<u8> {
-    let r = client.get(&url).send().await.unwrap();
-    assert_eq!(r.status(), StatusCode::OK, "{url}");
-    r.bytes().await.unwrap().to_vec()
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
-    let data = data_dir("kill");
+    let data = data_dir("restart-kill");
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
 
     // A solve that cannot converge (rho = 1) and stops on its 3 s budget.
-    let long = submit(
-        &client,
-        &base,
-        "order=1&target_unshot=1e-9&max_seconds=3",
-        box_scene(1.0, 3),
-    )
-    .await;
+    let long = job_id(
+        &submit_ok(
+            &client,
+            &base,
+            "order=1&target_unshot=1e-9&max_seconds=3",
+            never_converging_scene(),
+        )
+        .await,
+    );
     // A second job waits behind it; its scene will be lost while the server is down.
-    let orphan = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
+    let orphan = job_id(&submit_ok(&client, &base, "order=1", box_scene(0.5, 1)).await);
     let running = wait_until(&client, &base, &long, Duration::from_secs(20), |j| {
         j["state"] == "running" && j["progress"]["iterations"].as_u64().unwrap() > 0
     })
@@ -181,12 +105,12 @@ async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
 
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let again = job(&client, &base, &long).await;
+    let again = get_job(&client, &base, &long).await;
     assert!(
         again["state"] == "queued" || again["state"] == "running",
         "the interrupted job is queued again: {again}"
     );
-    let lost = job(&client, &base, &orphan).await;
+    let lost = get_job(&client, &base, &orphan).await;
     assert_eq!(lost["state"], "failed", "{lost}");
     assert_eq!(lost["error"]["code"], "unreadable_job");
     assert!(lost["error"]["message"]
@@ -202,7 +126,7 @@ async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
     assert_eq!(done["state"], "succeeded", "{done}");
     assert_eq!(done["stop_reason"], "time_budget");
     let result: Value =
-        serde_json::from_slice(&bytes(&client, format!("{base}/v1/jobs/{long}/result")).await)
+        serde_json::from_slice(&get_bytes(&client, format!("{base}/v1/jobs/{long}/result")).await)
             .unwrap();
     assert!(result["stats"]["iterations"].as_u64().unwrap() > 0);
     drop(service);
@@ -210,42 +134,33 @@ async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn finished_results_survive_a_restart() {
-    let data = data_dir("finished");
+    let data = data_dir("restart-finished");
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let id = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
-    let before = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
-        j["state"] == "succeeded"
-    })
-    .await;
-    let result = bytes(&client, format!("{base}/v1/jobs/{id}/result")).await;
-    let exr = bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await;
+    let id = job_id(&submit_ok_keyed(&client, &base, "order=1", box_scene(0.5, 1), "k-1").await);
+    let before = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+    let result = get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await;
+    let exr = get_bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await;
     service.kill();
 
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let after = job(&client, &base, &id).await;
+    let after = get_job(&client, &base, &id).await;
     assert_eq!(after, before, "the job is listed as it was");
     assert_eq!(
-        bytes(&client, format!("{base}/v1/jobs/{id}/result")).await,
+        get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await,
         result
     );
     assert_eq!(
-        bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await,
+        get_bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await,
         exr
     );
-    let list: Value = client
-        .get(format!("{base}/v1/jobs"))
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let list = list_jobs(&client, &base).await;
     assert_eq!(list["jobs"].as_array().unwrap().len(), 1);
     // The idempotency key survived too: a retry gets the same job.
-    let retried = submit_keyed(&client, &base, "order=1", box_scene(0.5, 1), Some("k-1")).await;
+    let retried =
+        job_id(&submit_ok_keyed(&client, &base, "order=1", box_scene(0.5, 1), "k-1").await);
     assert_eq!(retried, id);
     drop(service);
 }
@@ -254,21 +169,20 @@ async fn finished_results_survive_a_restart() {
 /// as queued, the process exits 0; the next start runs the job to its end.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn sigterm_requeues_the_running_job() {
-    let data = data_dir("sigterm");
+    let data = data_dir("restart-sigterm");
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let id = submit(
-        &client,
-        &base,
-        "order=1&target_unshot=1e-9&max_seconds=3",
-        box_scene(1.0, 3),
-    )
-    .await;
-    wait_until(&client, &base, &id, Duration::from_secs(20), |j| {
-        j["state"] == "running"
-    })
-    .await;
+    let id = job_id(
+        &submit_ok(
+            &client,
+            &base,
+            "order=1&target_unshot=1e-9&max_seconds=3",
+            never_converging_scene(),
+        )
+        .await,
+    );
+    wait_for(&client, &base, &id, "running", Duration::from_secs(20)).await;
     let took = service.terminate();
     assert!(took < Duration::from_secs(2), "shutdown took {took:?}");
     let record: Value = serde_json::from_slice(
@@ -279,10 +193,7 @@ async fn sigterm_requeues_the_running_job() {
 
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let done = wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
-        j["state"] == "succeeded"
-    })
-    .await;
+    let done = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
     assert_eq!(done["stop_reason"], "time_budget");
     drop(service);
 }
@@ -291,18 +202,15 @@ async fn sigterm_requeues_the_running_job() {
 /// `request` span (method, uri), what a solve logs a `job` span with the job's id.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn json_logs_carry_request_and_job_spans() {
-    let data = data_dir("json-logs");
+    let data = data_dir("restart-json-logs");
     std::fs::create_dir_all(&data).unwrap();
     let log_path = data.join("server.log");
     let log = std::fs::File::create(&log_path).unwrap();
     let client = client();
     let service = Service::start_logging(&data, &["--log-format", "json"], "info", log.into());
     let base = service.base.clone();
-    let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
-    wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
-        j["state"] == "succeeded"
-    })
-    .await;
+    let id = job_id(&submit_ok(&client, &base, "order=1", box_scene(0.5, 1)).await);
+    wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
     service.terminate();
     let text = std::fs::read_to_string(&log_path).unwrap();
     let lines: Vec<Value> = text
@@ -327,17 +235,14 @@ async fn json_logs_carry_request_and_job_spans() {
 /// jobs, files and all, and keeps the newest.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn retain_jobs_applies_at_start() {
-    let data = data_dir("retain");
+    let data = data_dir("restart-retain");
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
     let mut ids = Vec::new();
     for _ in 0..3 {
-        let id = submit(&client, &base, "order=1", box_scene(0.5, 1)).await;
-        wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
-            j["state"] == "succeeded"
-        })
-        .await;
+        let id = job_id(&submit_ok(&client, &base, "order=1", box_scene(0.5, 1)).await);
+        wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
         ids.push(id);
     }
     service.kill();
@@ -345,18 +250,14 @@ async fn retain_jobs_applies_at_start() {
     let service = Service::start(&data, &["--retain-jobs", "1"]);
     let base = service.base.clone();
     for old in &ids[..2] {
-        let r = client
-            .get(format!("{base}/v1/jobs/{old}"))
-            .send()
-            .await
-            .unwrap();
-        assert_eq!(r.status(), StatusCode::NOT_FOUND, "{old} deleted");
+        let r = get(&client, format!("{base}/v1/jobs/{old}")).await;
+        expect_error(r, StatusCode::NOT_FOUND, "job_not_found").await;
         assert!(
             !data.join("jobs").join(old).exists(),
             "{old}'s files deleted"
         );
     }
-    let kept = job(&client, &base, &ids[2]).await;
+    let kept = get_job(&client, &base, &ids[2]).await;
     assert_eq!(kept["state"], "succeeded");
     assert!(data
         .join("jobs")
@@ -371,44 +272,25 @@ async fn retain_jobs_applies_at_start() {
 /// before, for a job solved in either domain mode.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn probes_answer_the_same_after_a_restart() {
-    let data = data_dir("probes");
+    let data = data_dir("restart-probes");
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let points = serde_json::json!([
+    let points = json!([
         {"p": [0.5, 1.0, 0.5], "n": [0.0, -1.0, 0.0]},
         {"p": [0.3, 0.0, 0.7], "n": [0.0, 1.0, 0.0]},
         {"p": [0.0, 0.2, 0.9], "n": [1.0, 0.0, 0.0]},
         {"p": [0.5, 0.5, 0.5], "n": [0.0, 0.0, 1.0]}
-    ])
-    .to_string();
-    let probe = |base: String, id: String| {
-        let client = client.clone();
-        let body = points.clone();
-        async move {
-            let r = client
-                .post(format!("{base}/v1/jobs/{id}/probes"))
-                .header("content-type", "application/json")
-                .body(body)
-                .send()
-                .await
-                .unwrap();
-            assert_eq!(r.status(), StatusCode::OK, "probes of {id}");
-            r.json::<Value>().await.unwrap()
-        }
-    };
+    ]);
     let mut before = Vec::new();
     for query in [
         "order=2",
         "order=3&domain=tessellated&quantity=irradiance&indirect_only=true",
     ] {
-        let id = submit(&client, &base, query, box_scene(0.5, 2)).await;
-        wait_until(&client, &base, &id, Duration::from_secs(60), |j| {
-            j["state"] == "succeeded"
-        })
-        .await;
+        let id = job_id(&submit_ok(&client, &base, query, box_scene(0.5, 2)).await);
+        wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
         assert!(data.join("jobs").join(&id).join("solution.bin").is_file());
-        let values = probe(base.clone(), id.clone()).await;
+        let values = probe_ok(&client, &base, &id, &points).await;
         assert!(values[0]["L"][0].as_f64().unwrap() > 0.0, "{values}");
         assert!(values[3]["L"].is_null());
         before.push((id, values));
@@ -418,7 +300,7 @@ async fn probes_answer_the_same_after_a_restart() {
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
     for (id, values) in &before {
-        let after = probe(base.clone(), id.clone()).await;
+        let after = probe_ok(&client, &base, id, &points).await;
         assert_eq!(
             &after, values,
             "job {id}: the same values after the restart"

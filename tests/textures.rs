@@ -24,7 +24,8 @@ use wavrad::scene::{load_scene, ExternalFiles, LightKind, PunctualLight, Scene, 
 use wavrad::solver::{Quantity, SolverParams};
 
 mod common;
-use common::{glow, glowing_quad_gltf, linear_to_srgb_byte, palette_image, Glb};
+use common::cli::wavrad;
+use common::gltf::{glow, glowing_quad_gltf, linear_to_srgb_byte, palette_image, Glb};
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -552,12 +553,6 @@ fn the_cli_reads_images_next_to_a_gltf_and_refuses_gltf_1() {
     std::fs::write(dir.join("scene.bin"), &bin).unwrap();
     std::fs::write(dir.join("glow.png"), png).unwrap();
     let out_dir = dir.join("out");
-    let wavrad = |args: &[&str]| {
-        std::process::Command::new(env!("CARGO_BIN_EXE_wavrad"))
-            .args(args)
-            .output()
-            .unwrap()
-    };
     let scene = dir.join("scene.gltf");
     let out = wavrad(&[
         "solve",
