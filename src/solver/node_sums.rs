@@ -4,7 +4,15 @@
 //! Invariant: links only ever go to a node's descendants (larger indices), so nodes taken in index
 //! order see complete records, and the result is deterministic.
 
-use super::*;
+use super::basis::MAX_FUNCTIONS;
+use super::element::Patch;
+use super::hierarchy::Hierarchy;
+use super::oracle::{max_deviation, oracle_weight};
+use super::refine::{take_back, Shot, ShotContext};
+use super::shot_record::ShotRecord;
+use super::MAX_DEPTH;
+use crate::scene::Rgb;
+use std::sync::atomic::Ordering;
 
 impl ShotContext<'_> {
     /// After a shot's links to one receiver are gathered, judges each node on the sum of the
@@ -15,9 +23,10 @@ impl ShotContext<'_> {
     /// every node that received light passes or cannot be split. Nodes are taken in index order:
     /// links only ever go to a node's descendants, whose indices are larger, so a node's record
     /// is complete when it is judged, and the order (so the result) is deterministic.
-    pub(super) fn refine_by_node_sums(
+    pub(super) fn refine_by_node_sums<S: Shot>(
         &self,
-        mut record: ShotRecord<Source>,
+        shot: &S,
+        mut record: ShotRecord<S::Part>,
         rcv_index: usize,
         rcv: &mut Hierarchy,
     ) {
@@ -50,11 +59,11 @@ impl ShotContext<'_> {
             for l in &resend {
                 take_back(rcv, b, &l.dh[..nr]);
             }
-            let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
+            let first = self.first_child(rcv, b, rroot);
             debug_assert!(first > b, "children come after their parent");
             for c in 0..4 {
                 for l in &resend {
-                    self.transfer(&l.source, rcv_index, rcv, first + c, &mut record);
+                    self.transfer(shot, &l.source, rcv_index, rcv, first + c, &mut record);
                 }
             }
         }

@@ -1,17 +1,36 @@
-//! The shooting loop (DESIGN.md 5.1): punctual lights shoot first, then emitters their emission
-//! (direct shots), then the root with the most unshot power until the unshot ratio reaches the
-//! target. Receivers of one shot are processed in parallel; the shooter is read-only meanwhile.
+//! The shooting loop (DESIGN.md 5.1) as named steps: shoot the lights (punctual lights first;
+//! what they deliver counts as emitted), then report, pick the shooter (the next emitter's
+//! direct shot, else the root with the most unshot power), shoot (every receiver in parallel,
+//! the shooter read-only), clear what was shot; until the unshot ratio reaches the target.
 //!
-//! Invariant: after every shot each root's unshot power is up to date and `dh` is clear.
+//! Invariant: after every shot each root's unshot power (`unshot`) is up to date, every `dh` is
+//! clear, and `u` holds exactly what is left to shoot (a direct shot removes only the emission).
 
-use super::*;
-/// Can any point of `a` (front side) see any point of `b` (front side)?
-fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
-    let ca = a.corners();
-    let cb = b.corners();
-    let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
-    let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
-    b_in_front_of_a && a_in_front_of_b
+use super::basis::MAX_FUNCTIONS;
+use super::cover::{self, face_integral};
+use super::element_source::{ElementShot, SourceElement};
+use super::hierarchy::Hierarchy;
+use super::lights;
+use super::node_reflectance;
+use super::refine::ShotContext;
+use super::rules::{Bases, BasisAtControlPoints, Rules};
+use super::shot_record::ShotRecord;
+use super::source::LightShot;
+use super::visibility::Visibility;
+use super::{mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason, MIN_EDGE_REL};
+use crate::domain::ElementRoot;
+use crate::scene::{PunctualLight, Rgb};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+/// Counters shared by every shot.
+#[derive(Default)]
+struct Counters {
+    links: AtomicU64,
+    capped: AtomicU64,
+    touching: AtomicU64,
+    node_sum_splits: AtomicU64,
 }
 
 /// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
@@ -31,69 +50,35 @@ pub fn solve(
     let psi = BasisAtControlPoints::new(&bases, &rules);
     let mut hierarchies: Vec<Hierarchy> = roots
         .iter()
-        .map(|r| {
-            let basis = bases.of(r.shape);
-            let mut h = Hierarchy::new(basis.len());
-            cover::extend(&mut h, r, &rules.cover, basis);
-            node_reflectance::extend(&mut h, r);
-            h
-        })
+        .map(|r| new_hierarchy(r, &bases, &rules))
         .collect();
-    // Emitted power: exitance over each face (an extended root's domain emits only where its face is).
-    let mut emitted = [0.0; 3];
-    for r in &roots {
-        for ch in 0..3 {
-            emitted[ch] += r.exitance[ch] * r.face_area_m2;
-        }
-    }
-    let links = AtomicU64::new(0);
-    let capped = AtomicU64::new(0);
-    let touching = AtomicU64::new(0);
-    let node_sum_splits = AtomicU64::new(0);
+    let mut emitted = emitted_power(&roots);
+    let counters = Counters::default();
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
         .iter()
         .map(|l| lights::unoccluded_power_estimate(l, &roots, far))
         .sum();
-    let threshold = params.tolerance * (mean_rgb_sum(emitted) + light_estimate);
-    let min_edge = MIN_EDGE_REL * diagonal;
-    let facing_eps = 1e-9 * diagonal;
+    let ctx = ShotContext {
+        roots: &roots,
+        bases: &bases,
+        rules: &rules,
+        psi: &psi,
+        // Lights' shots are judged link by link; element shots set this from the parameters.
+        node_sums: false,
+        visibility,
+        threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
+        min_edge: MIN_EDGE_REL * diagonal,
+        quantity: params.quantity,
+        links: &counters.links,
+        capped: &counters.capped,
+        touching: &counters.touching,
+        node_sum_splits: &counters.node_sum_splits,
+        cancel,
+    };
     let mut convergence = Vec::new();
-    let mut iterations = 0u64;
-
-    // Punctual lights shoot first; what they deliver onto the surfaces counts as emitted.
-    let mut stop = StopReason::Converged;
-    for light in lights {
-        if cancel.load(Ordering::Relaxed) {
-            break;
-        }
-        let shot = lights::LightShot {
-            roots: &roots,
-            bases: &bases,
-            rules: &rules,
-            psi: &psi,
-            visibility,
-            light,
-            threshold,
-            min_edge,
-            far,
-            quantity: params.quantity,
-            links: &links,
-            capped: &capped,
-            cancel,
-        };
-        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
-            if h.nodes.is_empty() {
-                return;
-            }
-            shot.transfer(ri, h, 0);
-            if h.touched {
-                h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, true);
-            }
-        });
-        iterations += 1;
-    }
+    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies);
     if !lights.is_empty() {
         // What the lights delivered: direct irradiance integrated over each face.
         for (h, r) in hierarchies.iter().zip(&roots) {
@@ -104,197 +89,286 @@ pub fn solve(
         }
     }
     let emitted_total = mean_rgb_sum(emitted);
-    // Unshot power, counted over each face only (never over the empty part of a domain).
-    let unshot_power =
-        |h: &Hierarchy, r: &ElementRoot| -> f64 { mean_rgb_sum(face_integral(h, &h.u, r)) };
-
-    // Emitters' unshot radiosity starts at their exitance; direct shots send it first.
-    let mut direct_queue: Vec<usize> = (0..roots.len())
-        .filter(|&i| mean_rgb_sum(roots[i].exitance) > 0.0)
-        .collect();
-    direct_queue.sort_by(|&a, &b| {
-        (mean_rgb_sum(roots[b].exitance) * roots[b].face_area_m2)
-            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].face_area_m2))
-    });
-    for &i in &direct_queue {
-        // The emission is a constant: coefficient 0 of every node (what lights left unshot stays).
-        let h = &mut hierarchies[i];
-        let n = h.len;
-        for node in 0..h.nodes.len() {
-            for ch in 0..3 {
-                h.u[node * n][ch] += roots[i].exitance[ch];
-            }
-        }
-    }
+    let direct_queue = emitters_to_shoot(&roots, &mut hierarchies);
     // Per root, its unshot power (kept up to date after every shot).
     let mut unshot: Vec<f64> = hierarchies
         .iter()
         .zip(&roots)
         .map(|(h, r)| unshot_power(h, r))
         .collect();
-    let ratio = |unshot: &[f64]| {
-        if emitted_total > 0.0 {
-            unshot.iter().sum::<f64>() / emitted_total
-        } else {
-            0.0
-        }
+    let ctx = ShotContext {
+        // Every shot: split links add up under a large emitter's shadows, and wherever a later
+        // shot's source is split for its radiosity's detail (without the check on those shots,
+        // the M1 furnace was 7 % off near its corners; README).
+        node_sums: params.node_sums,
+        ..ctx
     };
+    let facing_eps = 1e-9 * diagonal;
     let mut direct_iter = direct_queue.into_iter();
+    let mut stop = StopReason::Converged;
     loop {
-        let r = ratio(&unshot);
+        let ratio = unshot_ratio(&unshot, emitted_total);
         let progress = Progress {
             iterations,
-            unshot_ratio: r,
+            unshot_ratio: ratio,
             elements: hierarchies.iter().map(|h| h.leaf_count() as u64).sum(),
-            links: links.load(Ordering::Relaxed),
+            links: counters.links.load(Ordering::Relaxed),
             seconds: start.elapsed().as_secs_f64(),
         };
         convergence.push(progress);
         observe(&progress);
-        if cancel.load(Ordering::Relaxed) {
-            stop = StopReason::Cancelled;
+        if let Some(reason) = must_stop(&progress, &params, cancel) {
+            stop = reason;
             break;
         }
-        if params.max_seconds.is_some_and(|m| progress.seconds >= m) {
-            stop = StopReason::TimeBudget;
+        let Some((shooter, direct)) =
+            pick_shooter(&mut direct_iter, &unshot, ratio, params.target_unshot)
+        else {
             break;
-        }
-        if iterations >= params.max_iterations {
-            stop = StopReason::IterationLimit;
-            break;
-        }
-        // Pick the shooter: next direct emitter, else the root with most unshot power.
-        let (shooter, direct) = match direct_iter.next() {
-            Some(i) => (i, true),
-            None => {
-                if r <= params.target_unshot {
-                    break;
-                }
-                let best = (0..roots.len()).max_by(|&a, &b| unshot[a].total_cmp(&unshot[b]));
-                match best {
-                    Some(b) if unshot[b] > 0.0 => (b, false),
-                    _ => break,
-                }
-            }
         };
-        let sbasis_len = bases.of(roots[shooter].shape).len();
-        let source_h = std::mem::take(&mut hierarchies[shooter]);
-        let mut root_coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-        if direct {
-            // The emission alone (a constant), whatever else the emitter already received.
-            root_coeffs[0] = roots[shooter].exitance;
-        } else {
-            root_coeffs[..sbasis_len].copy_from_slice(source_h.coeffs(&source_h.u, 0));
-        }
-        let cover = source_h.covers.first().copied();
-        let source_face_means = if direct {
-            None
-        } else {
-            roots[shooter]
-                .mask
-                .as_ref()
-                .map(|_| cover::face_means(&source_h, &source_h.u))
-        };
-        let source = Source {
-            face_mean: Source::face_mean(
-                &root_coeffs[..sbasis_len],
-                cover.as_ref(),
-                source_face_means.as_ref().map(|m| m[0]),
-            ),
-            map: ChildMap::IDENTITY,
-            depth: 0,
-            node: Some(0),
-            coeffs: root_coeffs,
-            rings: partial_face_rings(&roots[shooter], &ChildMap::IDENTITY, cover.as_ref()),
-            cover,
-        };
-        {
-            let ctx = ShotContext {
-                roots: &roots,
-                bases: &bases,
-                rules: &rules,
-                psi: &psi,
-                // Every shot: split links add up under a large emitter's shadows, and wherever a
-                // later shot's source is split for its radiosity's detail (without the check on
-                // those shots, the M1 furnace was 7 % off near its corners; README).
-                node_sums: params.node_sums,
-                visibility,
-                source_root: shooter,
-                source_hierarchy: &source_h,
-                direct,
-                source_face_means: source_face_means.as_deref(),
-                threshold,
-                min_edge,
-                quantity: params.quantity,
-                links: &links,
-                capped: &capped,
-                touching: &touching,
-                node_sum_splits: &node_sum_splits,
-                cancel,
-            };
-            hierarchies
-                .par_iter_mut()
-                .zip(unshot.par_iter_mut())
-                .enumerate()
-                .for_each(|(ri, (h, power))| {
-                    if ri == shooter
-                        || h.nodes.is_empty()
-                        || !faces_each_other(&roots[shooter], &roots[ri], facing_eps)
-                    {
-                        return;
-                    }
-                    let mut record = ShotRecord::default();
-                    ctx.transfer(&source, ri, h, 0, &mut record);
-                    if ctx.node_sums {
-                        ctx.refine_by_node_sums(record, ri, h);
-                    }
-                    if h.touched {
-                        h.push_pull(bases.of(roots[ri].shape), roots[ri].rho, direct);
-                        *power = unshot_power(h, &roots[ri]);
-                    }
-                });
-        }
-        hierarchies[shooter] = source_h;
-        let hs = &mut hierarchies[shooter];
-        if direct {
-            // Remove exactly the emission that was shot; received light stays unshot.
-            for ch in 0..3 {
-                hs.u[0][ch] -= roots[shooter].exitance[ch];
-            }
-            // Keep deeper levels consistent: the emission is a constant, so only coefficient 0 of
-            // every node changes by the same amount.
-            let n = hs.len;
-            for node in 1..hs.nodes.len() {
-                for ch in 0..3 {
-                    hs.u[node * n][ch] -= roots[shooter].exitance[ch];
-                }
-            }
-        } else {
-            hs.u.iter_mut().for_each(|c| *c = [0.0; 3]);
-        }
-        unshot[shooter] = unshot_power(hs, &roots[shooter]);
+        shoot(
+            &ctx,
+            shooter,
+            direct,
+            facing_eps,
+            &mut hierarchies,
+            &mut unshot,
+        );
+        clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
+        unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
         iterations += 1;
     }
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {
         iterations,
-        links: links.load(Ordering::Relaxed),
+        links: counters.links.load(Ordering::Relaxed),
         elements: last.elements,
         rays: visibility.rays_traced(),
         seconds: start.elapsed().as_secs_f64(),
         unshot_ratio: last.unshot_ratio,
         emitted_power: emitted,
         stop_reason: Some(stop),
-        refinement_capped: capped.load(Ordering::Relaxed),
-        touching_fallbacks: touching.load(Ordering::Relaxed),
-        node_sum_splits: node_sum_splits.load(Ordering::Relaxed),
+        refinement_capped: counters.capped.load(Ordering::Relaxed),
+        touching_fallbacks: counters.touching.load(Ordering::Relaxed),
+        node_sum_splits: counters.node_sum_splits.load(Ordering::Relaxed),
     };
-    Solution {
-        roots,
-        hierarchies,
-        params,
-        stats,
-        convergence,
-        bases,
+    Solution::new(roots, hierarchies, params, stats, convergence, bases)
+}
+
+/// A root's hierarchy before the solve: its root node, with its cover and reflectance.
+fn new_hierarchy(r: &ElementRoot, bases: &Bases, rules: &Rules) -> Hierarchy {
+    let basis = bases.of(r.shape);
+    let mut h = Hierarchy::new(basis.len());
+    cover::extend(&mut h, r, &rules.cover, basis);
+    node_reflectance::extend(&mut h, r);
+    h
+}
+
+/// Emitted power: exitance over each face (an extended root's domain emits only where its face is).
+fn emitted_power(roots: &[ElementRoot]) -> Rgb {
+    let mut emitted = [0.0; 3];
+    for r in roots {
+        for ch in 0..3 {
+            emitted[ch] += r.exitance[ch] * r.face_area_m2;
+        }
     }
+    emitted
+}
+
+/// Unshot power, counted over each face only (never over the empty part of a domain).
+fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
+    mean_rgb_sum(face_integral(h, &h.u, r))
+}
+
+fn unshot_ratio(unshot: &[f64], emitted_total: f64) -> f64 {
+    if emitted_total > 0.0 {
+        unshot.iter().sum::<f64>() / emitted_total
+    } else {
+        0.0
+    }
+}
+
+/// Each punctual light shoots onto every receiver; returns the shots taken.
+fn shoot_lights(
+    ctx: &ShotContext,
+    lights: &[PunctualLight],
+    far: f64,
+    hierarchies: &mut [Hierarchy],
+) -> u64 {
+    let mut shots = 0;
+    for light in lights {
+        if ctx.cancel.load(Ordering::Relaxed) {
+            break;
+        }
+        let shot = LightShot {
+            light,
+            far,
+            visibility: ctx.visibility,
+        };
+        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
+            if h.nodes.is_empty() {
+                return;
+            }
+            let root = &ctx.roots[ri];
+            ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
+            if h.touched {
+                h.push_pull(ctx.bases.of(root.shape), root.rho, true);
+            }
+        });
+        shots += 1;
+    }
+    shots
+}
+
+/// Emitters' unshot radiosity starts at their exitance (what lights left unshot stays); returns
+/// them in the order their direct shots go: most emitted power first.
+fn emitters_to_shoot(roots: &[ElementRoot], hierarchies: &mut [Hierarchy]) -> Vec<usize> {
+    let mut queue: Vec<usize> = (0..roots.len())
+        .filter(|&i| mean_rgb_sum(roots[i].exitance) > 0.0)
+        .collect();
+    queue.sort_by(|&a, &b| {
+        (mean_rgb_sum(roots[b].exitance) * roots[b].face_area_m2)
+            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].face_area_m2))
+    });
+    for &i in &queue {
+        // The emission is a constant: coefficient 0 of every node.
+        add_to_unshot_constant(&mut hierarchies[i], roots[i].exitance, 1.0);
+    }
+    queue
+}
+
+/// Adds `sign * c` to the constant coefficient of every node's unshot radiosity.
+fn add_to_unshot_constant(h: &mut Hierarchy, c: Rgb, sign: f64) {
+    let n = h.len;
+    for node in 0..h.nodes.len() {
+        for ch in 0..3 {
+            if sign > 0.0 {
+                h.u[node * n][ch] += c[ch];
+            } else {
+                h.u[node * n][ch] -= c[ch];
+            }
+        }
+    }
+}
+
+/// Why the loop must stop before the next shot, if it must (convergence is `pick_shooter`'s).
+fn must_stop(
+    progress: &Progress,
+    params: &SolverParams,
+    cancel: &AtomicBool,
+) -> Option<StopReason> {
+    if cancel.load(Ordering::Relaxed) {
+        Some(StopReason::Cancelled)
+    } else if params.max_seconds.is_some_and(|m| progress.seconds >= m) {
+        Some(StopReason::TimeBudget)
+    } else if progress.iterations >= params.max_iterations {
+        Some(StopReason::IterationLimit)
+    } else {
+        None
+    }
+}
+
+/// The next shooter and whether its shot is direct: the next emitter's emission, else the root
+/// with the most unshot power; `None` once converged (or nothing is left to shoot).
+fn pick_shooter(
+    direct: &mut impl Iterator<Item = usize>,
+    unshot: &[f64],
+    ratio: f64,
+    target: f64,
+) -> Option<(usize, bool)> {
+    if let Some(i) = direct.next() {
+        return Some((i, true));
+    }
+    if ratio <= target {
+        return None;
+    }
+    let best = (0..unshot.len()).max_by(|&a, &b| unshot[a].total_cmp(&unshot[b]))?;
+    (unshot[best] > 0.0).then_some((best, false))
+}
+
+/// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
+/// power is updated.
+fn shoot(
+    ctx: &ShotContext,
+    shooter: usize,
+    direct: bool,
+    facing_eps: f64,
+    hierarchies: &mut [Hierarchy],
+    unshot: &mut [f64],
+) {
+    let roots = ctx.roots;
+    let sroot = &roots[shooter];
+    let n = ctx.bases.of(sroot.shape).len();
+    let source_h = std::mem::take(&mut hierarchies[shooter]);
+    let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+    if direct {
+        // The emission alone (a constant), whatever else the emitter already received.
+        coeffs[0] = sroot.exitance;
+    } else {
+        coeffs[..n].copy_from_slice(source_h.coeffs(&source_h.u, 0));
+    }
+    let source_face_means = if direct {
+        None
+    } else {
+        sroot
+            .mask
+            .as_ref()
+            .map(|_| cover::face_means(&source_h, &source_h.u))
+    };
+    let cover = source_h.covers.first().copied();
+    let stored_mean = source_face_means.as_ref().map(|m| m[0]);
+    let root_element = SourceElement::root(sroot, coeffs, n, cover, stored_mean);
+    let shot = ElementShot {
+        roots,
+        bases: ctx.bases,
+        rules: ctx.rules,
+        visibility: ctx.visibility,
+        source_root: shooter,
+        source_hierarchy: &source_h,
+        direct,
+        source_face_means: source_face_means.as_deref(),
+        min_edge: ctx.min_edge,
+    };
+    hierarchies
+        .par_iter_mut()
+        .zip(unshot.par_iter_mut())
+        .enumerate()
+        .for_each(|(ri, (h, power))| {
+            if ri == shooter
+                || h.nodes.is_empty()
+                || !faces_each_other(sroot, &roots[ri], facing_eps)
+            {
+                return;
+            }
+            let mut record = ShotRecord::default();
+            ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+            if ctx.node_sums {
+                ctx.refine_by_node_sums(&shot, record, ri, h);
+            }
+            if h.touched {
+                h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                *power = unshot_power(h, &roots[ri]);
+            }
+        });
+    hierarchies[shooter] = source_h;
+}
+
+/// After a shot, what the shooter shot is no longer unshot: on a direct shot exactly the emission
+/// (received light stays unshot), else everything.
+fn clear_unshot(h: &mut Hierarchy, root: &ElementRoot, direct: bool) {
+    if direct {
+        // The emission is a constant: coefficient 0 of every node changes by the same amount.
+        add_to_unshot_constant(h, root.exitance, -1.0);
+    } else {
+        h.u.iter_mut().for_each(|c| *c = [0.0; 3]);
+    }
+}
+
+/// Can any point of `a` (front side) see any point of `b` (front side)?
+fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
+    let ca = a.corners();
+    let cb = b.corners();
+    let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
+    let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
+    b_in_front_of_a && a_in_front_of_b
 }

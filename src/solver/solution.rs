@@ -4,8 +4,47 @@
 //! Invariant: a solution's hierarchies hold their covers and reflectance per node (recomputed by
 //! `from_saved`), so face integrals and point values read the same tree the solve built.
 
-use super::*;
+use super::basis::{Basis, ChildMap};
+use super::cover;
+use super::hierarchy::{self, Hierarchy};
+use super::node_reflectance;
+use super::rules::{Bases, Rules};
+use super::{Progress, Quantity, SolveStats, SolverParams};
+use crate::domain::ElementRoot;
+use crate::scene::Rgb;
+use glam::DVec2;
+
+/// The solved scene: roots, their hierarchies, and what it took.
+#[derive(Debug)]
+pub struct Solution {
+    pub roots: Vec<ElementRoot>,
+    pub hierarchies: Vec<Hierarchy>,
+    pub params: SolverParams,
+    pub stats: SolveStats,
+    pub convergence: Vec<Progress>,
+    bases: Bases,
+}
+
 impl Solution {
+    /// The solve's result (`shooting::solve`).
+    pub(super) fn new(
+        roots: Vec<ElementRoot>,
+        hierarchies: Vec<Hierarchy>,
+        params: SolverParams,
+        stats: SolveStats,
+        convergence: Vec<Progress>,
+        bases: Bases,
+    ) -> Self {
+        Solution {
+            roots,
+            hierarchies,
+            params,
+            stats,
+            convergence,
+            bases,
+        }
+    }
+
     /// A solution rebuilt from saved parts: the roots (rebuilt by the caller exactly as for the
     /// solve), per root its hierarchy with `nodes`, `h` and `hd` (`u` and `dh` may be empty: they
     /// are zeroed; `covers` are recomputed), and the parameters. Stats and convergence are empty.
