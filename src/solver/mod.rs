@@ -11,17 +11,17 @@
 //! Receivers of one shot are processed in parallel (rayon); the shooter is read-only during it,
 //! and is refined only virtually (sub-elements computed by push, not stored).
 
-pub mod basis;
-pub mod cover;
+pub(crate) mod basis;
+pub(crate) mod cover;
 mod element;
 mod element_source;
-pub mod hierarchy;
+pub(crate) mod hierarchy;
 pub mod kernel;
-pub mod lights;
-pub mod node_reflectance;
+pub(crate) mod lights;
+pub(crate) mod node_reflectance;
 mod node_sums;
 mod oracle;
-pub mod quadrature;
+pub(crate) mod quadrature;
 mod refine;
 mod rules;
 mod shooting;
@@ -29,7 +29,7 @@ mod shot_record;
 mod solution;
 mod source;
 mod transfer;
-pub mod visibility;
+pub(crate) mod visibility;
 
 pub use shooting::solve;
 pub use solution::Solution;

@@ -7,7 +7,7 @@
 //! Invariant: a link is gathered (and counted) exactly once, at the node the verdict accepts it
 //! on; the node-sum check (`node_sums.rs`) takes back exactly what `gather` added.
 
-use super::basis::{Basis, MAX_FUNCTIONS};
+use super::basis::MAX_FUNCTIONS;
 use super::hierarchy::Hierarchy;
 use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
@@ -148,28 +148,14 @@ impl ShotContext<'_> {
         }
     }
 
-    /// The first of node `b`'s four children, splitting `b` first if it is a leaf.
+    /// The first of node `b`'s four children, splitting `b` first if it is a leaf (the new
+    /// children get their side tables: covers, reflectance).
     pub fn first_child(&self, rcv: &mut Hierarchy, b: usize, root: &ElementRoot) -> usize {
-        first_child(rcv, b, root, self.rules, self.bases.of(root.shape))
-    }
-}
-
-/// The first of node `b`'s four children, splitting `b` first if it is a leaf (an extended
-/// root's new children get their covers).
-fn first_child(
-    rcv: &mut Hierarchy,
-    b: usize,
-    root: &ElementRoot,
-    rules: &Rules,
-    basis: &Basis,
-) -> usize {
-    if rcv.nodes[b].is_leaf() {
-        let first = rcv.split(b, basis, root.shape);
-        super::cover::extend(rcv, root, &rules.cover, basis);
-        node_reflectance::extend(rcv, root);
-        first
-    } else {
-        rcv.nodes[b].first_child as usize
+        if rcv.nodes[b].is_leaf() {
+            rcv.split_element(b, root, self.bases.of(root.shape), &self.rules.cover)
+        } else {
+            rcv.nodes[b].first_child as usize
+        }
     }
 }
 

@@ -11,7 +11,6 @@ use super::cover::{self, face_integral};
 use super::element_source::{ElementShot, SourceElement};
 use super::hierarchy::Hierarchy;
 use super::lights;
-use super::node_reflectance;
 use super::refine::ShotContext;
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::ShotRecord;
@@ -50,7 +49,7 @@ pub fn solve(
     let psi = BasisAtControlPoints::new(&bases, &rules);
     let mut hierarchies: Vec<Hierarchy> = roots
         .iter()
-        .map(|r| new_hierarchy(r, &bases, &rules))
+        .map(|r| Hierarchy::of_root(r, bases.of(r.shape), &rules.cover))
         .collect();
     let mut emitted = emitted_power(&roots);
     let counters = Counters::default();
@@ -153,15 +152,6 @@ pub fn solve(
         node_sum_splits: counters.node_sum_splits.load(Ordering::Relaxed),
     };
     Solution::new(roots, hierarchies, params, stats, convergence, bases)
-}
-
-/// A root's hierarchy before the solve: its root node, with its cover and reflectance.
-fn new_hierarchy(r: &ElementRoot, bases: &Bases, rules: &Rules) -> Hierarchy {
-    let basis = bases.of(r.shape);
-    let mut h = Hierarchy::new(basis.len());
-    cover::extend(&mut h, r, &rules.cover, basis);
-    node_reflectance::extend(&mut h, r);
-    h
 }
 
 /// Emitted power: exitance over each face (an extended root's domain emits only where its face is).

@@ -7,7 +7,6 @@
 use super::basis::{Basis, ChildMap};
 use super::cover;
 use super::hierarchy::{self, Hierarchy};
-use super::node_reflectance;
 use super::rules::{Bases, Rules};
 use super::{Progress, Quantity, SolveStats, SolverParams};
 use crate::domain::ElementRoot;
@@ -84,10 +83,7 @@ impl Solution {
             h.u = vec![[0.0; 3]; coeffs];
             h.dh = vec![[0.0; 3]; coeffs];
             h.touched = false;
-            h.covers.clear();
-            cover::extend(h, r, &rules.cover, basis);
-            h.reflectance.clear();
-            node_reflectance::extend(h, r);
+            h.rebuild_side_tables(r, basis, &rules.cover);
         }
         Ok(Solution {
             roots,
