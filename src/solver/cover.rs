@@ -6,7 +6,8 @@
 //! over the face: `integral over (face inside e) of f = |e| * sum_i f_i m_i`.
 //!
 //! Invariants: a hierarchy of an extended root holds one [`NodeCover`] per node (computed when the
-//! node is created, [`extend`]); native roots hold none. A full element has alpha 1, moments
+//! node is created, [`extend`], which only `Hierarchy`'s side-table owner calls); native roots
+//! hold none. A full element has alpha 1, moments
 //! `(1, 0, ...)` and its own quadrature points; an empty one alpha 0 and moments 0. Moments are
 //! exact up to rounding (the clipped face split into signed triangles, a triangle rule exact for
 //! the basis' products with 1), so power counted over the face never includes the empty part of a
@@ -162,7 +163,7 @@ fn face_moments(
 
 /// Computes the covers of the nodes of `h` that have none yet (all nodes of a new hierarchy, the
 /// children of a split). Does nothing for a native root.
-pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: &Basis) {
+pub(super) fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: &Basis) {
     let Some(mask) = &root.mask else {
         return;
     };
@@ -175,6 +176,7 @@ pub fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, basis: 
 /// The cover of node `b` of `root`'s hierarchy: `None` for a native root. Every node of an
 /// extended root has one ([`extend`] runs after each split), so a missing one panics.
 pub fn of_node(h: &Hierarchy, root: &ElementRoot, b: usize) -> Option<NodeCover> {
+    h.debug_assert_side_tables(root);
     root.mask.as_ref().map(|_| h.covers[b])
 }
 

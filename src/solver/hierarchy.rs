@@ -1,6 +1,11 @@
 //! The element hierarchy of one root: a 4-ary tree of sub-elements stored in an arena, with
 //! per-node coefficient arrays (per colour channel) for irradiance and unshot radiosity.
 //!
+//! Also owns the per-node side tables: one `NodeCover` per node for an extended root, one
+//! `NodeReflectance` per node for a root whose reflectance varies, none otherwise. Only
+//! [`Hierarchy::of_root`], [`Hierarchy::split_element`] and [`Hierarchy::rebuild_side_tables`]
+//! create nodes for the solver, and each keeps the tables in step (`debug_assert_side_tables`).
+//!
 //! Invariants (checked by [`Hierarchy::assert_well_formed`]):
 //! - node 0 is the root, with the identity map; children are created four at a time, contiguous,
 //!   and a child's map is its parent's map followed by the shape's child map;
@@ -8,9 +13,9 @@
 //!   function held by the leaves (push-pull consistency): `pull(children) == parent` for `h`, `hd`, `u`.
 
 use super::basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
-use super::cover::NodeCover;
-use super::node_reflectance::NodeReflectance;
-use crate::domain::Shape;
+use super::cover::{self, CoverRules, NodeCover};
+use super::node_reflectance::{self, NodeReflectance};
+use crate::domain::{ElementRoot, Shape};
 use crate::scene::Rgb;
 use glam::DVec2;
 
@@ -70,6 +75,61 @@ impl Hierarchy {
             covers: Vec::new(),
             reflectance: Vec::new(),
         }
+    }
+
+    /// The hierarchy of `root` before the solve: its root node, with its side tables.
+    pub(crate) fn of_root(root: &ElementRoot, basis: &Basis, cover_rules: &CoverRules) -> Self {
+        let mut h = Hierarchy::new(basis.len());
+        h.extend_side_tables(root, basis, cover_rules);
+        h
+    }
+
+    /// Splits leaf `node` of `root`'s hierarchy (as [`Hierarchy::split`]) and gives the children
+    /// their side tables; returns the first child.
+    pub(crate) fn split_element(
+        &mut self,
+        node: usize,
+        root: &ElementRoot,
+        basis: &Basis,
+        cover_rules: &CoverRules,
+    ) -> usize {
+        let first = self.split(node, basis, root.shape);
+        self.extend_side_tables(root, basis, cover_rules);
+        first
+    }
+
+    /// Recomputes every node's side tables (a hierarchy read back from a saved solution).
+    pub(crate) fn rebuild_side_tables(
+        &mut self,
+        root: &ElementRoot,
+        basis: &Basis,
+        cover_rules: &CoverRules,
+    ) {
+        self.covers.clear();
+        self.reflectance.clear();
+        self.extend_side_tables(root, basis, cover_rules);
+    }
+
+    /// Gives the nodes that have none their cover and reflectance.
+    fn extend_side_tables(&mut self, root: &ElementRoot, basis: &Basis, cover_rules: &CoverRules) {
+        cover::extend(self, root, cover_rules, basis);
+        node_reflectance::extend(self, root);
+        self.debug_assert_side_tables(root);
+    }
+
+    /// The side tables' invariant: one entry per node where the root needs them, none elsewhere.
+    pub(crate) fn debug_assert_side_tables(&self, root: &ElementRoot) {
+        let per_node = |needed: bool| if needed { self.nodes.len() } else { 0 };
+        debug_assert_eq!(
+            self.covers.len(),
+            per_node(root.mask.is_some()),
+            "one cover per node of an extended root, none for a native one"
+        );
+        debug_assert_eq!(
+            self.reflectance.len(),
+            per_node(root.reflectance.is_some()),
+            "one reflectance per node of a root whose reflectance varies"
+        );
     }
 
     pub fn coeffs<'a>(&self, array: &'a [Rgb], node: usize) -> &'a [Rgb] {

@@ -1,27 +1,17 @@
 //! Punctual lights (`KHR_lights_punctual`): point, spot and directional lights shine directly on
 //! the receivers as the solve's first shots (DESIGN.md 5.1).
 //!
-//! Owns [`unoccluded_irradiance`] (the light's irradiance at a point before occlusion) and
-//! [`LightShot`], which projects a light's direct irradiance onto a receiver's basis from its
-//! quadrature points, one visibility ray per point, and refines the receiver with the same oracle
-//! as element transfers (projection error, partial visibility, rays from the element's corners).
+//! Owns the glTF light formulas: [`unoccluded_irradiance`] (the light's irradiance at a point
+//! before occlusion), [`shadow_target`] and the power estimate that scales the error threshold.
+//! A light shoots as a `source::LightSource`, through the same transfer and oracle as elements.
 //! The light's delivered power, the integral of that irradiance over the receivers, counts in
 //! the emitted power of `unshot_ratio` (CONTRACT). Units: intensity in W/sr (candela) for point
 //! and spot lights, irradiance in W/m^2 (lux) for directional lights.
 
-use super::basis::{ChildMap, MAX_FUNCTIONS};
-use super::cover;
-use super::hierarchy::Hierarchy;
-use super::visibility::Visibility;
-use super::{
-    corner_probe_points, first_child, gather, max_deviation, mean_rgb_sum, oracle_weight,
-    receiving_point, reflectance_error, visibility_point, weighted_deviation, Bases,
-    BasisAtControlPoints, Patch, Quantity, Rules, MAX_DEPTH,
-};
+use super::mean_rgb_sum;
 use crate::domain::ElementRoot;
 use crate::scene::{LightKind, PunctualLight, Rgb};
 use glam::DVec3;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// The direct irradiance of `light` at `x` on a surface of unit normal `n`, ignoring occlusion,
 /// and the point a shadow ray from `x` must reach (the light, or far along a directional light).
@@ -85,118 +75,6 @@ pub fn unoccluded_power_estimate(light: &PunctualLight, roots: &[ElementRoot], f
             mean_rgb_sum(unoccluded_irradiance(light, centroid, r.normal, far).0) * r.face_area_m2
         })
         .sum()
-}
-
-/// One light's shot onto the receivers.
-pub(super) struct LightShot<'a> {
-    pub roots: &'a [ElementRoot],
-    pub bases: &'a Bases,
-    pub rules: &'a Rules,
-    /// The receiver basis at the rule's points, then at the corner probe points.
-    pub psi: &'a BasisAtControlPoints,
-    pub visibility: &'a Visibility,
-    pub light: &'a PunctualLight,
-    /// Absolute error threshold, in W (sum over channels).
-    pub threshold: f64,
-    pub min_edge: f64,
-    pub far: f64,
-    pub quantity: Quantity,
-    pub links: &'a AtomicU64,
-    pub capped: &'a AtomicU64,
-    pub cancel: &'a AtomicBool,
-}
-
-impl LightShot<'_> {
-    /// Gathers the light's direct irradiance into node `b` of `rcv`, refining as needed.
-    pub fn transfer(&self, rcv_index: usize, rcv: &mut Hierarchy, b: usize) {
-        if self.cancel.load(Ordering::Relaxed) {
-            return;
-        }
-        let rroot = &self.roots[rcv_index];
-        let rbasis = self.bases.of(rroot.shape);
-        let nr = rbasis.len();
-        let rnode = rcv.nodes[b];
-        let rp = Patch::new(rroot, &rnode.map);
-        let rrule = self.rules.of(rroot.shape);
-        // Extended receivers: points off the face see the light from their closest face point.
-        let rcover = cover::of_node(rcv, rroot, b);
-        let ignore = [rroot.face.0; 2];
-        let weight = oracle_weight(
-            self.quantity,
-            super::node_reflectance::rho_of(rcv, rroot, b),
-        );
-        let psi = self.psi.of(rroot.shape);
-        let weighted = |e: Rgb| (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
-        let mut e_k = [[0.0f64; 3]; 64];
-        let mut dh = [[0.0f64; 3]; MAX_FUNCTIONS];
-        let (mut any_visible, mut any_blocked) = (false, false);
-        let mut unoccluded_max: f64 = 0.0;
-        for (k, q) in rrule.iter().enumerate() {
-            let x = receiving_point(rroot, &rp, rcover.as_ref(), k, q.st);
-            let (e, target) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
-            if mean_rgb_sum(e) <= 0.0 {
-                continue;
-            }
-            unoccluded_max = unoccluded_max.max(weighted(e));
-            if self.visibility.visible(x, target, ignore) {
-                any_visible = true;
-                e_k[k] = e;
-                for a in 0..nr {
-                    for ch in 0..3 {
-                        dh[a][ch] += q.weight * psi[k][a] * e[ch];
-                    }
-                }
-            } else {
-                any_blocked = true;
-            }
-        }
-        // Oracle: as for element transfers (see `ShotContext::transfer`).
-        let nk = rrule.len();
-        let mut err = max_deviation(&psi[..nk], &e_k[..nk], &dh, nr, weight);
-        let mut partial = any_visible && any_blocked;
-        if !partial && any_visible && err * rp.area <= self.threshold {
-            // Near the element's corners, which the interior quadrature points do not sample.
-            for (j, &st) in corner_probe_points(rroot.shape).iter().enumerate() {
-                let x = visibility_point(rroot, &rnode.map, st);
-                let (e, _) = unoccluded_irradiance(self.light, x, rroot.normal, self.far);
-                err = err.max(weighted_deviation(e, &dh, &psi[nk + j], nr, weight));
-            }
-        }
-        if !partial && err * rp.area <= self.threshold && unoccluded_max * rp.area > self.threshold
-        {
-            partial = self.corner_rays_disagree(&rnode.map, rroot, any_visible);
-        }
-        if partial {
-            err = err.max(unoccluded_max);
-        }
-        err = err.max(reflectance_error(rcv, b, dh[0]));
-        if err * rp.area > self.threshold {
-            if rnode.depth < MAX_DEPTH && rp.min_edge() * 0.5 >= self.min_edge {
-                let first = first_child(rcv, b, rroot, &self.rules.cover, rbasis);
-                for c in 0..4 {
-                    self.transfer(rcv_index, rcv, first + c);
-                }
-                return;
-            }
-            self.capped.fetch_add(1, Ordering::Relaxed);
-        }
-        self.links.fetch_add(1, Ordering::Relaxed);
-        gather(rcv, b, &dh[..nr]);
-    }
-
-    /// Do shadow rays from points near the receiver's corners disagree with the quadrature rays?
-    fn corner_rays_disagree(&self, map: &ChildMap, rroot: &ElementRoot, visible: bool) -> bool {
-        let ignore = [rroot.face.0; 2];
-        corner_probe_points(rroot.shape).iter().any(|&st| {
-            let xv = visibility_point(rroot, map, st);
-            let (e, _) = unoccluded_irradiance(self.light, xv, rroot.normal, self.far);
-            if mean_rgb_sum(e) <= 0.0 {
-                return false;
-            }
-            let target = shadow_target(self.light, xv, self.far);
-            self.visibility.visible(xv, target, ignore) != visible
-        })
-    }
 }
 
 #[cfg(test)]

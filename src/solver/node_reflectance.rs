@@ -43,7 +43,7 @@ fn sample_points(shape: Shape) -> impl Iterator<Item = DVec2> + Clone {
 
 /// Computes the reflectance of the nodes of `h` that have none yet. Does nothing for a root whose
 /// reflectance is constant.
-pub fn extend(h: &mut Hierarchy, root: &ElementRoot) {
+pub(super) fn extend(h: &mut Hierarchy, root: &ElementRoot) {
     let Some(map) = &root.reflectance else {
         return;
     };

@@ -1,0 +1,155 @@
+//! The world geometry of one element of a root: its [`Patch`] (origin, edges, area), the points
+//! that receive and cast rays for it (`visibility_point`, `receiving_point`: off an extended face,
+//! the closest point on the face), and the [`Emitter`] whose exact form factor it has (its own
+//! polygon, or the face inside a partly covered element, as world rings).
+//!
+//! Invariant: an extended root's points always receive and see through their stand-ins on the
+//! face (`V'(Q,P) = V(Q,P')`), in visibility and kernel alike, so the extension is continuous
+//! across the face's border.
+
+use super::basis::ChildMap;
+use super::cover::{node_box, NodeCover};
+use super::kernel;
+use crate::domain::{ElementRoot, ElementStatus, Shape};
+use glam::{DVec2, DVec3};
+use std::sync::Arc;
+
+/// The world point that stands in for root point `map(st)` in visibility queries: the point itself
+/// on a native root or on the face; else its closest point on the face (`V'(Q,P) = V(Q,P')`).
+pub(super) fn visibility_point(root: &ElementRoot, map: &ChildMap, st: DVec2) -> DVec3 {
+    let p = map.apply(st);
+    match &root.mask {
+        Some(mask) => root.frame.point(mask.closest_point(p)),
+        None => root.frame.point(p),
+    }
+}
+
+/// Where quadrature point `k` (at `st`) of receiver element `patch` of `root` receives light: the
+/// point itself, or, off an extended face, its stand-in (`cover.visibility_point`, the closest
+/// point on the face), in visibility and kernel alike. The extension is then continuous across the
+/// face's border: with the kernel at the point itself, a wall standing on the border inside the
+/// domain is seen from behind on one side of it and from the front on the other, and elements
+/// straddling the border average the two.
+pub(super) fn receiving_point(
+    root: &ElementRoot,
+    patch: &Patch,
+    cover: Option<&NodeCover>,
+    k: usize,
+    st: DVec2,
+) -> DVec3 {
+    match cover {
+        Some(c) => root.frame.point(c.visibility_point[k]),
+        None => patch.point(st),
+    }
+}
+
+/// What a source element emits from: its own shape, or the face inside it; on its front side only.
+pub(super) struct Emitter {
+    shape: EmitterShape,
+    /// A point of the source's plane and its unit normal (the emitting side).
+    origin: DVec3,
+    normal: DVec3,
+}
+
+enum EmitterShape {
+    Polygon(Vec<DVec3>),
+    Rings(Arc<FaceRings>),
+}
+
+/// The face inside a partly covered element, as world-space rings (see `FaceMask::clip`).
+pub(super) type FaceRings = Vec<Vec<DVec3>>;
+
+/// The face rings of element `map` of `root` when the element is partly covered (computed once per
+/// source element, not per transfer: clipping is O(n) in the face's edges).
+pub(super) fn partial_face_rings(
+    root: &ElementRoot,
+    map: &ChildMap,
+    cover: Option<&NodeCover>,
+) -> Option<Arc<FaceRings>> {
+    match (&root.mask, cover) {
+        (Some(mask), Some(c)) if c.status == ElementStatus::Partial => {
+            Some(world_rings(root, &mask.clip(node_box(map))))
+        }
+        _ => None,
+    }
+}
+
+/// Rings in `root`'s `(s,t)` as world-space rings.
+pub(super) fn world_rings(root: &ElementRoot, rings: &[Vec<DVec2>]) -> Arc<FaceRings> {
+    Arc::new(
+        rings
+            .iter()
+            .map(|r| r.iter().map(|p| root.frame.point(*p)).collect())
+            .collect(),
+    )
+}
+
+impl Emitter {
+    pub(super) fn new(root: &ElementRoot, patch: &Patch, rings: Option<&Arc<FaceRings>>) -> Self {
+        let shape = match rings {
+            Some(r) => EmitterShape::Rings(r.clone()),
+            None => {
+                let mut polygon = Vec::with_capacity(4);
+                patch.corners(root.shape, &mut polygon);
+                EmitterShape::Polygon(polygon)
+            }
+        };
+        Emitter {
+            shape,
+            origin: patch.origin,
+            normal: root.normal,
+        }
+    }
+
+    /// Exact unoccluded form factor from a differential area at `x` (normal `n`): zero behind the
+    /// source's plane, which a one-sided emitter does not light (a receiver element, or an
+    /// extended domain, may reach behind a source it otherwise faces).
+    pub(super) fn form_factor(&self, x: DVec3, n: DVec3) -> f64 {
+        if self.normal.dot(x - self.origin) <= 0.0 {
+            return 0.0;
+        }
+        match &self.shape {
+            EmitterShape::Polygon(p) => kernel::point_polygon_form_factor(x, n, p),
+            EmitterShape::Rings(r) => kernel::point_rings_form_factor(x, n, r),
+        }
+    }
+}
+
+/// World geometry of a sub-element given its map in the root's reference coordinates.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Patch {
+    pub(super) origin: DVec3,
+    pub(super) u: DVec3,
+    pub(super) v: DVec3,
+    pub(super) area: f64,
+}
+
+impl Patch {
+    pub(super) fn new(root: &ElementRoot, map: &ChildMap) -> Self {
+        let f = &root.frame;
+        let origin = f.point(map.o);
+        let u = f.u * map.e1.x + f.v * map.e1.y;
+        let v = f.u * map.e2.x + f.v * map.e2.y;
+        let full = u.cross(v).length();
+        let area = match root.shape {
+            Shape::Triangle => 0.5 * full,
+            Shape::Parallelogram => full,
+        };
+        Patch { origin, u, v, area }
+    }
+    pub(super) fn point(&self, st: DVec2) -> DVec3 {
+        self.origin + self.u * st.x + self.v * st.y
+    }
+    pub(super) fn corners(&self, shape: Shape, out: &mut Vec<DVec3>) {
+        out.clear();
+        out.push(self.origin);
+        out.push(self.origin + self.u);
+        if shape == Shape::Parallelogram {
+            out.push(self.origin + self.u + self.v);
+        }
+        out.push(self.origin + self.v);
+    }
+    pub(super) fn min_edge(&self) -> f64 {
+        self.u.length().min(self.v.length())
+    }
+}

@@ -1,0 +1,181 @@
+//! The recursion of one shot onto one receiver, after RenderPark's `Refine`: evaluate the
+//! interaction (`transfer::receive`), get a verdict (`oracle::evaluate`), act on it (gather the
+//! link, split the source, or split the receiver and recurse). [`Shot`] is what shoots (the
+//! elements of a root, or a punctual light); [`ShotContext`] what every shot shares (tables,
+//! visibility, threshold, counters).
+//!
+//! Invariant: a link is gathered (and counted) exactly once, at the node the verdict accepts it
+//! on; the node-sum check (`node_sums.rs`) takes back exactly what `gather` added.
+
+use super::basis::MAX_FUNCTIONS;
+use super::hierarchy::Hierarchy;
+use super::node_reflectance;
+use super::oracle::{self, oracle_weight, Verdict};
+use super::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
+use super::shot_record::ShotRecord;
+use super::source::{ReceiverNode, Source};
+use super::transfer::{self, Received};
+use super::visibility::Visibility;
+use super::Quantity;
+use crate::domain::ElementRoot;
+use crate::scene::Rgb;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+/// What shoots in one shot.
+pub(super) trait Shot: Sync {
+    /// What the recursion splits and records: an element of the shooter (`()` for a light).
+    type Part: Clone;
+    /// A part as a receiver node sees it.
+    type Source<'s>: Source
+    where
+        Self: 's;
+
+    /// `part` as a source seen by a receiver node whose oracle weighs channels by `weight`;
+    /// `None` when it sends nothing (no unshot radiosity, or an empty element).
+    fn source<'s>(&'s self, part: &'s Self::Part, weight: Rgb) -> Option<Self::Source<'s>>;
+
+    /// The four children of a part the oracle split.
+    fn children(&self, part: &Self::Part) -> [Self::Part; 4];
+}
+
+/// What every shot of a solve shares.
+#[derive(Clone, Copy)]
+pub(super) struct ShotContext<'a> {
+    pub roots: &'a [ElementRoot],
+    pub bases: &'a Bases,
+    pub rules: &'a Rules,
+    pub psi: &'a BasisAtControlPoints,
+    /// Record every gathered link, with its light at the receiver's check points, and judge each
+    /// receiver node on the sum of its links after the shot (`refine_by_node_sums`).
+    pub node_sums: bool,
+    pub visibility: &'a Visibility,
+    /// Absolute error threshold, in W (sum over channels).
+    pub threshold: f64,
+    pub min_edge: f64,
+    pub quantity: Quantity,
+    pub links: &'a AtomicU64,
+    pub capped: &'a AtomicU64,
+    pub touching: &'a AtomicU64,
+    pub node_sum_splits: &'a AtomicU64,
+    pub cancel: &'a AtomicBool,
+}
+
+impl ShotContext<'_> {
+    /// Transfers `part` of `shot` to receiver node `b` of `rcv` (root `rcv_index`), refining as
+    /// the oracle asks.
+    pub fn transfer<S: Shot>(
+        &self,
+        shot: &S,
+        part: &S::Part,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+        b: usize,
+        record: &mut ShotRecord<S::Part>,
+    ) {
+        if self.cancel.load(Ordering::Relaxed) {
+            return;
+        }
+        let rroot = &self.roots[rcv_index];
+        let weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
+        let Some(source) = shot.source(part, weight) else {
+            return;
+        };
+        let receiver = ReceiverNode::new(rroot, rcv, b);
+        let received = self.receive(&source, &receiver);
+        match oracle::evaluate(self, &source, &receiver, &received, weight) {
+            Verdict::Accept => self.accept(part, rcv, b, &received, record),
+            Verdict::Capped => {
+                self.capped.fetch_add(1, Ordering::Relaxed);
+                self.accept(part, rcv, b, &received, record);
+            }
+            Verdict::SplitSource => {
+                for child in shot.children(part) {
+                    self.transfer(shot, &child, rcv_index, rcv, b, record);
+                }
+            }
+            Verdict::SplitReceiver => {
+                let first = self.first_child(rcv, b, rroot);
+                for c in 0..4 {
+                    self.transfer(shot, part, rcv_index, rcv, first + c, record);
+                }
+            }
+        }
+    }
+
+    /// The source's irradiance at the receiver's rule points, and at its check points when the
+    /// node sums are judged.
+    fn receive(&self, source: &impl Source, receiver: &ReceiverNode) -> Received {
+        let shape = receiver.root.shape;
+        let check_points = if self.node_sums {
+            corner_probe_points(shape)
+        } else {
+            &[]
+        };
+        let received = transfer::receive(
+            source,
+            receiver,
+            self.rules.of(shape),
+            self.psi.of(shape),
+            self.bases.of(shape).len(),
+            check_points,
+        );
+        if received.touching > 0 {
+            self.touching
+                .fetch_add(received.touching, Ordering::Relaxed);
+        }
+        received
+    }
+
+    /// Gathers an accepted link at node `b` (and records it for the node-sum check).
+    fn accept<P: Clone>(
+        &self,
+        part: &P,
+        rcv: &mut Hierarchy,
+        b: usize,
+        received: &Received,
+        record: &mut ShotRecord<P>,
+    ) {
+        let nr = rcv.len;
+        self.links.fetch_add(1, Ordering::Relaxed);
+        gather(rcv, b, &received.dh[..nr]);
+        if self.node_sums {
+            record.add(
+                b,
+                &received.e[..received.points],
+                &received.dh,
+                part.clone(),
+            );
+        }
+    }
+
+    /// The first of node `b`'s four children, splitting `b` first if it is a leaf (the new
+    /// children get their side tables: covers, reflectance).
+    pub fn first_child(&self, rcv: &mut Hierarchy, b: usize, root: &ElementRoot) -> usize {
+        if rcv.nodes[b].is_leaf() {
+            rcv.split_element(b, root, self.bases.of(root.shape), &self.rules.cover)
+        } else {
+            rcv.nodes[b].first_child as usize
+        }
+    }
+}
+
+/// Adds an accepted link's coefficients to node `b`'s gathered irradiance.
+fn gather(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+    add_to_gathered(rcv, b, dh, 1.0);
+    rcv.touched = true;
+}
+
+/// Removes a link's coefficients from node `b`'s gathered irradiance: exactly what `gather` added.
+pub(super) fn take_back(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+    add_to_gathered(rcv, b, dh, -1.0);
+}
+
+fn add_to_gathered(rcv: &mut Hierarchy, b: usize, dh: &[Rgb], sign: f64) {
+    let nr = dh.len();
+    debug_assert!(nr <= MAX_FUNCTIONS);
+    for (a, d) in dh.iter().enumerate() {
+        for ch in 0..3 {
+            rcv.dh[b * nr + a][ch] += sign * d[ch];
+        }
+    }
+}

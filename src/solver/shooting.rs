@@ -1,0 +1,364 @@
+//! The shooting loop (DESIGN.md 5.1) as named steps: shoot the lights (punctual lights first;
+//! what they deliver counts as emitted), then report, pick the shooter (the next emitter's
+//! direct shot, else the root with the most unshot power), shoot (every receiver in parallel,
+//! the shooter read-only), clear what was shot; until the unshot ratio reaches the target.
+//!
+//! Invariant: after every shot each root's unshot power (`unshot`) is up to date, every `dh` is
+//! clear, and `u` holds exactly what is left to shoot (a direct shot removes only the emission).
+
+use super::basis::MAX_FUNCTIONS;
+use super::cover::{self, face_integral};
+use super::element_source::{ElementShot, SourceElement};
+use super::hierarchy::Hierarchy;
+use super::lights;
+use super::refine::ShotContext;
+use super::rules::{Bases, BasisAtControlPoints, Rules};
+use super::shot_record::ShotRecord;
+use super::source::LightShot;
+use super::visibility::Visibility;
+use super::{mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason, MIN_EDGE_REL};
+use crate::domain::ElementRoot;
+use crate::scene::{PunctualLight, Rgb};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Instant;
+
+/// Counters shared by every shot.
+#[derive(Default)]
+struct Counters {
+    links: AtomicU64,
+    capped: AtomicU64,
+    touching: AtomicU64,
+    node_sum_splits: AtomicU64,
+}
+
+/// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
+/// next check (between and inside shots).
+pub fn solve(
+    roots: Vec<ElementRoot>,
+    lights: &[PunctualLight],
+    visibility: &Visibility,
+    diagonal: f64,
+    params: SolverParams,
+    cancel: &AtomicBool,
+    observe: &mut dyn FnMut(&Progress),
+) -> Solution {
+    let start = Instant::now();
+    let bases = Bases::new(params.order);
+    let rules = Rules::new(params.order);
+    let psi = BasisAtControlPoints::new(&bases, &rules);
+    let mut hierarchies: Vec<Hierarchy> = roots
+        .iter()
+        .map(|r| Hierarchy::of_root(r, bases.of(r.shape), &rules.cover))
+        .collect();
+    let mut emitted = emitted_power(&roots);
+    let counters = Counters::default();
+    // A shadow ray towards a directional light ends this far away: beyond the scene.
+    let far = 4.0 * diagonal;
+    let light_estimate: f64 = lights
+        .iter()
+        .map(|l| lights::unoccluded_power_estimate(l, &roots, far))
+        .sum();
+    let ctx = ShotContext {
+        roots: &roots,
+        bases: &bases,
+        rules: &rules,
+        psi: &psi,
+        // Lights' shots are judged link by link; element shots set this from the parameters.
+        node_sums: false,
+        visibility,
+        threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
+        min_edge: MIN_EDGE_REL * diagonal,
+        quantity: params.quantity,
+        links: &counters.links,
+        capped: &counters.capped,
+        touching: &counters.touching,
+        node_sum_splits: &counters.node_sum_splits,
+        cancel,
+    };
+    let mut convergence = Vec::new();
+    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies);
+    if !lights.is_empty() {
+        // What the lights delivered: direct irradiance integrated over each face.
+        for (h, r) in hierarchies.iter().zip(&roots) {
+            let delivered = face_integral(h, &h.hd, r);
+            for ch in 0..3 {
+                emitted[ch] += delivered[ch];
+            }
+        }
+    }
+    let emitted_total = mean_rgb_sum(emitted);
+    let direct_queue = emitters_to_shoot(&roots, &mut hierarchies);
+    // Per root, its unshot power (kept up to date after every shot).
+    let mut unshot: Vec<f64> = hierarchies
+        .iter()
+        .zip(&roots)
+        .map(|(h, r)| unshot_power(h, r))
+        .collect();
+    let ctx = ShotContext {
+        // Every shot: split links add up under a large emitter's shadows, and wherever a later
+        // shot's source is split for its radiosity's detail (without the check on those shots,
+        // the M1 furnace was 7 % off near its corners; README).
+        node_sums: params.node_sums,
+        ..ctx
+    };
+    let facing_eps = 1e-9 * diagonal;
+    let mut direct_iter = direct_queue.into_iter();
+    let mut stop = StopReason::Converged;
+    loop {
+        let ratio = unshot_ratio(&unshot, emitted_total);
+        let progress = Progress {
+            iterations,
+            unshot_ratio: ratio,
+            elements: hierarchies.iter().map(|h| h.leaf_count() as u64).sum(),
+            links: counters.links.load(Ordering::Relaxed),
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        convergence.push(progress);
+        observe(&progress);
+        if let Some(reason) = must_stop(&progress, &params, cancel) {
+            stop = reason;
+            break;
+        }
+        let Some((shooter, direct)) =
+            pick_shooter(&mut direct_iter, &unshot, ratio, params.target_unshot)
+        else {
+            break;
+        };
+        shoot(
+            &ctx,
+            shooter,
+            direct,
+            facing_eps,
+            &mut hierarchies,
+            &mut unshot,
+        );
+        clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
+        unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
+        iterations += 1;
+    }
+    let last = *convergence.last().expect("at least one progress row");
+    let stats = SolveStats {
+        iterations,
+        links: counters.links.load(Ordering::Relaxed),
+        elements: last.elements,
+        rays: visibility.rays_traced(),
+        seconds: start.elapsed().as_secs_f64(),
+        unshot_ratio: last.unshot_ratio,
+        emitted_power: emitted,
+        stop_reason: Some(stop),
+        refinement_capped: counters.capped.load(Ordering::Relaxed),
+        touching_fallbacks: counters.touching.load(Ordering::Relaxed),
+        node_sum_splits: counters.node_sum_splits.load(Ordering::Relaxed),
+    };
+    Solution::new(roots, hierarchies, params, stats, convergence, bases)
+}
+
+/// Emitted power: exitance over each face (an extended root's domain emits only where its face is).
+fn emitted_power(roots: &[ElementRoot]) -> Rgb {
+    let mut emitted = [0.0; 3];
+    for r in roots {
+        for ch in 0..3 {
+            emitted[ch] += r.exitance[ch] * r.face_area_m2;
+        }
+    }
+    emitted
+}
+
+/// Unshot power, counted over each face only (never over the empty part of a domain).
+fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
+    mean_rgb_sum(face_integral(h, &h.u, r))
+}
+
+fn unshot_ratio(unshot: &[f64], emitted_total: f64) -> f64 {
+    if emitted_total > 0.0 {
+        unshot.iter().sum::<f64>() / emitted_total
+    } else {
+        0.0
+    }
+}
+
+/// Each punctual light shoots onto every receiver; returns the shots taken.
+fn shoot_lights(
+    ctx: &ShotContext,
+    lights: &[PunctualLight],
+    far: f64,
+    hierarchies: &mut [Hierarchy],
+) -> u64 {
+    let mut shots = 0;
+    for light in lights {
+        if ctx.cancel.load(Ordering::Relaxed) {
+            break;
+        }
+        let shot = LightShot {
+            light,
+            far,
+            visibility: ctx.visibility,
+        };
+        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
+            if h.nodes.is_empty() {
+                return;
+            }
+            let root = &ctx.roots[ri];
+            ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
+            if h.touched {
+                h.push_pull(ctx.bases.of(root.shape), root.rho, true);
+            }
+        });
+        shots += 1;
+    }
+    shots
+}
+
+/// Emitters' unshot radiosity starts at their exitance (what lights left unshot stays); returns
+/// them in the order their direct shots go: most emitted power first.
+fn emitters_to_shoot(roots: &[ElementRoot], hierarchies: &mut [Hierarchy]) -> Vec<usize> {
+    let mut queue: Vec<usize> = (0..roots.len())
+        .filter(|&i| mean_rgb_sum(roots[i].exitance) > 0.0)
+        .collect();
+    queue.sort_by(|&a, &b| {
+        (mean_rgb_sum(roots[b].exitance) * roots[b].face_area_m2)
+            .total_cmp(&(mean_rgb_sum(roots[a].exitance) * roots[a].face_area_m2))
+    });
+    for &i in &queue {
+        // The emission is a constant: coefficient 0 of every node.
+        add_to_unshot_constant(&mut hierarchies[i], roots[i].exitance, 1.0);
+    }
+    queue
+}
+
+/// Adds `sign * c` to the constant coefficient of every node's unshot radiosity.
+fn add_to_unshot_constant(h: &mut Hierarchy, c: Rgb, sign: f64) {
+    let n = h.len;
+    for node in 0..h.nodes.len() {
+        for ch in 0..3 {
+            if sign > 0.0 {
+                h.u[node * n][ch] += c[ch];
+            } else {
+                h.u[node * n][ch] -= c[ch];
+            }
+        }
+    }
+}
+
+/// Why the loop must stop before the next shot, if it must (convergence is `pick_shooter`'s).
+fn must_stop(
+    progress: &Progress,
+    params: &SolverParams,
+    cancel: &AtomicBool,
+) -> Option<StopReason> {
+    if cancel.load(Ordering::Relaxed) {
+        Some(StopReason::Cancelled)
+    } else if params.max_seconds.is_some_and(|m| progress.seconds >= m) {
+        Some(StopReason::TimeBudget)
+    } else if progress.iterations >= params.max_iterations {
+        Some(StopReason::IterationLimit)
+    } else {
+        None
+    }
+}
+
+/// The next shooter and whether its shot is direct: the next emitter's emission, else the root
+/// with the most unshot power; `None` once converged (or nothing is left to shoot).
+fn pick_shooter(
+    direct: &mut impl Iterator<Item = usize>,
+    unshot: &[f64],
+    ratio: f64,
+    target: f64,
+) -> Option<(usize, bool)> {
+    if let Some(i) = direct.next() {
+        return Some((i, true));
+    }
+    if ratio <= target {
+        return None;
+    }
+    let best = (0..unshot.len()).max_by(|&a, &b| unshot[a].total_cmp(&unshot[b]))?;
+    (unshot[best] > 0.0).then_some((best, false))
+}
+
+/// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
+/// power is updated.
+fn shoot(
+    ctx: &ShotContext,
+    shooter: usize,
+    direct: bool,
+    facing_eps: f64,
+    hierarchies: &mut [Hierarchy],
+    unshot: &mut [f64],
+) {
+    let roots = ctx.roots;
+    let sroot = &roots[shooter];
+    let n = ctx.bases.of(sroot.shape).len();
+    let source_h = std::mem::take(&mut hierarchies[shooter]);
+    let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+    if direct {
+        // The emission alone (a constant), whatever else the emitter already received.
+        coeffs[0] = sroot.exitance;
+    } else {
+        coeffs[..n].copy_from_slice(source_h.coeffs(&source_h.u, 0));
+    }
+    let source_face_means = if direct {
+        None
+    } else {
+        sroot
+            .mask
+            .as_ref()
+            .map(|_| cover::face_means(&source_h, &source_h.u))
+    };
+    let cover = source_h.covers.first().copied();
+    let stored_mean = source_face_means.as_ref().map(|m| m[0]);
+    let root_element = SourceElement::root(sroot, coeffs, n, cover, stored_mean);
+    let shot = ElementShot {
+        roots,
+        bases: ctx.bases,
+        rules: ctx.rules,
+        visibility: ctx.visibility,
+        source_root: shooter,
+        source_hierarchy: &source_h,
+        direct,
+        source_face_means: source_face_means.as_deref(),
+        min_edge: ctx.min_edge,
+    };
+    hierarchies
+        .par_iter_mut()
+        .zip(unshot.par_iter_mut())
+        .enumerate()
+        .for_each(|(ri, (h, power))| {
+            if ri == shooter
+                || h.nodes.is_empty()
+                || !faces_each_other(sroot, &roots[ri], facing_eps)
+            {
+                return;
+            }
+            let mut record = ShotRecord::default();
+            ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+            if ctx.node_sums {
+                ctx.refine_by_node_sums(&shot, record, ri, h);
+            }
+            if h.touched {
+                h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                *power = unshot_power(h, &roots[ri]);
+            }
+        });
+    hierarchies[shooter] = source_h;
+}
+
+/// After a shot, what the shooter shot is no longer unshot: on a direct shot exactly the emission
+/// (received light stays unshot), else everything.
+fn clear_unshot(h: &mut Hierarchy, root: &ElementRoot, direct: bool) {
+    if direct {
+        // The emission is a constant: coefficient 0 of every node changes by the same amount.
+        add_to_unshot_constant(h, root.exitance, -1.0);
+    } else {
+        h.u.iter_mut().for_each(|c| *c = [0.0; 3]);
+    }
+}
+
+/// Can any point of `a` (front side) see any point of `b` (front side)?
+fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
+    let ca = a.corners();
+    let cb = b.corners();
+    let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
+    let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
+    b_in_front_of_a && a_in_front_of_b
+}

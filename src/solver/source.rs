@@ -1,0 +1,218 @@
+//! What a transfer asks of whatever shoots: the [`Source`] interface, shared by elements of the
+//! shooter (`element_source.rs`) and punctual lights ([`LightSource`]), after pbrt-v4's `Light`
+//! as `SampleLd` uses it. A source answers "irradiance at x" (occlusion included), "unoccluded
+//! irradiance at x", and "where do the shadow rays from x go" (to check the quadrature's
+//! verdict); the transfer (`transfer.rs`) and the oracle (`oracle.rs`) know nothing else of it.
+//!
+//! Also owns [`ReceiverNode`], the receiving side of one interaction.
+//!
+//! Invariant: a source's point answers and its shadow rays cast exactly the rays its transfer
+//! needs, in a fixed order (the ray count is part of the solve's statistics).
+
+use super::basis::ChildMap;
+use super::cover::{self, NodeCover};
+use super::element::Patch;
+use super::hierarchy::Hierarchy;
+use super::lights::{shadow_target, unoccluded_irradiance};
+use super::mean_rgb_sum;
+use super::node_reflectance;
+use super::refine::Shot;
+use super::visibility::Visibility;
+use crate::domain::ElementRoot;
+use crate::scene::{PunctualLight, Rgb};
+use glam::{DVec2, DVec3};
+
+/// What a source delivers at one receiver point.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct PointIrradiance {
+    /// Irradiance received at the point, occlusion included.
+    pub e: Rgb,
+    /// Unoccluded irradiance at the point, channels weighted as the oracle's errors.
+    pub unoccluded: f64,
+    /// The source's exact unoccluded form factor from the point (element sources; the
+    /// reciprocity check sums it), 0 for lights.
+    pub form_factor: f64,
+    /// Whether any of the point's rays to the source was unblocked, and any blocked.
+    pub any_visible: bool,
+    pub any_blocked: bool,
+    /// Partial visibility among the source's samples: the error they may cause at this point.
+    pub source_side_err: f64,
+    /// A partly covered source: how far its alpha-weighted rule is from the exact form factor,
+    /// times its non-constant part (only splitting the source sharpens it).
+    pub coverage_err: f64,
+    /// No source point lay in front of the receiver (touching elements): the exact form factor
+    /// times the visible fraction stood in for the quadrature.
+    pub touching: bool,
+}
+
+/// Whether, and how, the oracle may split a source.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SourceSplit {
+    /// Not at the depth or size limit (never for a punctual light).
+    pub can_split: bool,
+    /// The source element's area (m^2).
+    pub area: f64,
+    /// Its radiosity has finer detail than its own coefficients (a stored inner node).
+    pub detail: bool,
+}
+
+/// A source of light as one receiver node sees it.
+pub(super) trait Source {
+    /// The faces the shadow rays to the source ignore, given the receiver's face: the receiver's,
+    /// and the source element's own.
+    fn ignored_faces(&self, receiver_face: u32) -> [u32; 2];
+
+    /// What the source delivers at receiver point `x` (normal `n`), its shadow rays ignoring the
+    /// faces `ignore` ([`Source::ignored_faces`]); `None` when nothing reaches it unoccluded
+    /// (behind the source, outside a spot's cone).
+    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance>;
+
+    /// The unoccluded irradiance at `x` of the source's mean (the oracle's corner probes).
+    fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb;
+
+    /// Shadow rays from receiver point `x` (normal `n`) towards the source's corners, those that
+    /// exchange light: true as soon as `disagrees(target)` does for one of them.
+    fn corner_rays(&self, x: DVec3, n: DVec3, disagrees: &mut dyn FnMut(DVec3) -> bool) -> bool;
+
+    /// How many spread rays check the verdict beyond the corners (0: none).
+    fn spread_rays(&self) -> usize;
+
+    /// The spread ray from receiver point `x` to the source's point `st` (reference coordinates,
+    /// inset from its border), if they exchange light: `disagrees(target)`, else false.
+    fn spread_ray(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        st: DVec2,
+        disagrees: &mut dyn FnMut(DVec3) -> bool,
+    ) -> bool;
+
+    /// Reciprocity: when the receiver's points missed the source (`seen_by_receiver`, the
+    /// exchange they saw, m^2, is far below what the source's points see), the irradiance error
+    /// the unseen exchange stands for; `None` otherwise, and always for lights.
+    fn missed_by(&self, receiver: &ReceiverNode, seen_by_receiver: f64) -> Option<f64>;
+
+    /// Whether the oracle may split this source.
+    fn split(&self) -> SourceSplit;
+}
+
+/// The receiving side of one interaction: node `index` of a root's hierarchy.
+pub(super) struct ReceiverNode<'a> {
+    pub root: &'a ElementRoot,
+    pub map: ChildMap,
+    pub depth: u8,
+    pub patch: Patch,
+    /// Extended roots: how the node covers the face.
+    pub cover: Option<NodeCover>,
+    /// A leaf whose reflectance varies: its deviation from its mean (see `reflectance_error`).
+    pub reflectance_deviation: Option<Rgb>,
+}
+
+impl<'a> ReceiverNode<'a> {
+    pub fn new(root: &'a ElementRoot, h: &Hierarchy, index: usize) -> Self {
+        let node = h.nodes[index];
+        ReceiverNode {
+            root,
+            map: node.map,
+            depth: node.depth,
+            patch: Patch::new(root, &node.map),
+            cover: cover::of_node(h, root, index),
+            reflectance_deviation: node
+                .is_leaf()
+                .then(|| node_reflectance::deviation_of(h, index)),
+        }
+    }
+}
+
+/// A punctual light as a source: its irradiance at a point and one shadow ray to it.
+pub(super) struct LightSource<'a> {
+    pub light: &'a PunctualLight,
+    /// A distance beyond the scene: where a directional light's shadow rays end.
+    pub far: f64,
+    pub visibility: &'a Visibility,
+    /// The oracle's channel weights at the receiver.
+    pub weight: Rgb,
+}
+
+impl Source for LightSource<'_> {
+    fn ignored_faces(&self, receiver_face: u32) -> [u32; 2] {
+        [receiver_face; 2]
+    }
+
+    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
+        let (e, target) = unoccluded_irradiance(self.light, x, n, self.far);
+        if mean_rgb_sum(e) <= 0.0 {
+            return None;
+        }
+        let weight = self.weight;
+        let unoccluded = (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
+        let visible = self.visibility.visible(x, target, ignore);
+        Some(PointIrradiance {
+            e: if visible { e } else { [0.0; 3] },
+            unoccluded,
+            any_visible: visible,
+            any_blocked: !visible,
+            ..PointIrradiance::default()
+        })
+    }
+
+    fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb {
+        unoccluded_irradiance(self.light, x, n, self.far).0
+    }
+
+    fn corner_rays(&self, x: DVec3, n: DVec3, disagrees: &mut dyn FnMut(DVec3) -> bool) -> bool {
+        let (e, _) = unoccluded_irradiance(self.light, x, n, self.far);
+        if mean_rgb_sum(e) <= 0.0 {
+            return false;
+        }
+        disagrees(shadow_target(self.light, x, self.far))
+    }
+
+    fn spread_rays(&self) -> usize {
+        0
+    }
+
+    fn spread_ray(&self, _: DVec3, _: DVec3, _: DVec2, _: &mut dyn FnMut(DVec3) -> bool) -> bool {
+        false
+    }
+
+    fn missed_by(&self, _: &ReceiverNode, _: f64) -> Option<f64> {
+        None
+    }
+
+    fn split(&self) -> SourceSplit {
+        SourceSplit {
+            can_split: false,
+            area: 0.0,
+            detail: false,
+        }
+    }
+}
+
+/// One punctual light's shot: a single part (the light is never split).
+pub(super) struct LightShot<'a> {
+    pub light: &'a PunctualLight,
+    pub far: f64,
+    pub visibility: &'a Visibility,
+}
+
+impl Shot for LightShot<'_> {
+    type Part = ();
+    type Source<'s>
+        = LightSource<'s>
+    where
+        Self: 's;
+
+    fn source<'s>(&'s self, _: &'s (), weight: Rgb) -> Option<LightSource<'s>> {
+        Some(LightSource {
+            light: self.light,
+            far: self.far,
+            visibility: self.visibility,
+            weight,
+        })
+    }
+
+    fn children(&self, _: &()) -> [(); 4] {
+        unreachable!("a punctual light is never split: its `SourceSplit::can_split` is false")
+    }
+}

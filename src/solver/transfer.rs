@@ -1,0 +1,94 @@
+//! Quadrature to received irradiance: a [`Source`] asked at the receiver node's rule points (then,
+//! for the node-sum check, at its check points near the corners), the values projected onto the
+//! receiver's basis, and what the points' rays said, as [`Received`] for the oracle.
+//!
+//! Invariant: only the rule points enter the projection `dh` and the link's own oracle; the check
+//! points are recorded for the node's check after the shot.
+
+use super::basis::MAX_FUNCTIONS;
+use super::element::{receiving_point, visibility_point};
+use super::quadrature::QuadPoint;
+use super::source::{ReceiverNode, Source};
+use crate::scene::Rgb;
+use glam::DVec2;
+
+/// Most points a receiver is asked at: its rule's, then its check points.
+pub(super) const MAX_POINTS: usize = 64;
+
+/// What a source delivered at one receiver node's points.
+pub(super) struct Received {
+    /// Irradiance at the rule points, then at the check points.
+    pub e: [Rgb; MAX_POINTS],
+    /// How many of `e` are rule points, and how many in all.
+    pub rule_points: usize,
+    pub points: usize,
+    /// The projection onto the receiver's basis (the link's coefficients).
+    pub dh: [Rgb; MAX_FUNCTIONS],
+    /// Over the rule points: did any ray pass, any ray stop?
+    pub any_visible: bool,
+    pub any_blocked: bool,
+    /// Over the rule points: the largest unoccluded irradiance (weighted as the oracle's errors),
+    /// the largest error the source's sampling may cause, the largest coverage error.
+    pub unoccluded_max: f64,
+    pub source_side_err: f64,
+    pub coverage_err: f64,
+    /// Unoccluded exchange (area x form factor) seen from the receiver's rule points.
+    pub exchange_seen_by_receiver: f64,
+    /// Rule points where the touching fallback stood in.
+    pub touching: u64,
+}
+
+/// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
+/// at `check_points`, and projects the rule points' irradiance onto the receiver's basis.
+pub(super) fn receive(
+    source: &impl Source,
+    receiver: &ReceiverNode,
+    rule: &[QuadPoint],
+    psi: &[[f64; MAX_FUNCTIONS]],
+    nr: usize,
+    check_points: &[DVec2],
+) -> Received {
+    let root = receiver.root;
+    let ignore = source.ignored_faces(root.face.0);
+    let nk = rule.len();
+    let mut out = Received {
+        e: [[0.0; 3]; MAX_POINTS],
+        rule_points: nk,
+        points: nk + check_points.len(),
+        dh: [[0.0; 3]; MAX_FUNCTIONS],
+        any_visible: false,
+        any_blocked: false,
+        unoccluded_max: 0.0,
+        source_side_err: 0.0,
+        coverage_err: 0.0,
+        exchange_seen_by_receiver: 0.0,
+        touching: 0,
+    };
+    for k in 0..out.points {
+        let x = match rule.get(k) {
+            Some(q) => receiving_point(root, &receiver.patch, receiver.cover.as_ref(), k, q.st),
+            None => visibility_point(root, &receiver.map, check_points[k - nk]),
+        };
+        let Some(p) = source.irradiance_at(x, root.normal, ignore) else {
+            continue;
+        };
+        out.e[k] = p.e;
+        let Some(q) = rule.get(k) else {
+            continue;
+        };
+        let covered = receiver.cover.as_ref().map_or(1.0, |c| c.alpha[k]);
+        out.exchange_seen_by_receiver += q.weight * covered * p.form_factor * receiver.patch.area;
+        out.unoccluded_max = out.unoccluded_max.max(p.unoccluded);
+        out.any_visible |= p.any_visible;
+        out.any_blocked |= p.any_blocked;
+        out.source_side_err = out.source_side_err.max(p.source_side_err);
+        out.coverage_err = out.coverage_err.max(p.coverage_err);
+        out.touching += u64::from(p.touching);
+        for a in 0..nr {
+            for ch in 0..3 {
+                out.dh[a][ch] += q.weight * psi[k][a] * p.e[ch];
+            }
+        }
+    }
+    out
+}
