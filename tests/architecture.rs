@@ -206,3 +206,36 @@ fn dependencies_point_along_the_data_flow() {
         }
     }
 }
+
+/// The documents the code cites live in the repository (`docs/`): no source file, README or
+/// ARCHITECTURE.md line points at design pages outside it.
+#[test]
+fn citations_point_into_the_repository() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut files = Vec::new();
+    rust_files(&src(), &mut files);
+    files.push(root.join("README.md"));
+    files.push(root.join("ARCHITECTURE.md"));
+    for f in files {
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            for cited in [
+                "shared/design",
+                "DESIGN.md",
+                "CONTRACT.md",
+                "STYLE.md",
+                "CONTRACT ",
+            ] {
+                assert!(
+                    !line.contains(cited),
+                    "{}:{}: cites {cited}; cite docs/contract.md or docs/design.md",
+                    f.display(),
+                    n + 1
+                );
+            }
+        }
+    }
+    for doc in ["docs/contract.md", "docs/design.md"] {
+        assert!(root.join(doc).is_file(), "{doc} is cited and must exist");
+    }
+}

@@ -194,7 +194,7 @@ async fn a_full_queue_refuses_and_cancelled_jobs_end() {
     let next_id = job_id(&next);
 
     // Cancelling the running job stops it at the next shot, then its outputs are written. The
-    // CONTRACT's 2 seconds hold on an idle machine (this takes ~0.1 s); the bound here leaves
+    // docs/contract.md's 2 seconds hold on an idle machine (this takes ~0.1 s); the bound here leaves
     // room for a loaded test machine.
     // Wait (bounded) until the busy job has shot at least once, so the cancel lands mid-solve.
     let started = Instant::now();

@@ -1,7 +1,7 @@
 //! The HTTP service over a real socket (port 0), requests it refuses: outside the contract (unknown
 //! routes and jobs, wrong media types, bad parameters), over a limit (body size, memory, job
 //! seconds, in-flight requests, request time), without the bearer token; and a store that cannot be
-//! written. Every refusal is the CONTRACT's error JSON and names what to change.
+//! written. Every refusal is the error JSON of docs/contract.md and names what to change.
 
 use reqwest::StatusCode;
 use serde_json::{json, Value};

@@ -1,4 +1,4 @@
-//! The extended domain of a face (paper section 3, DESIGN.md section 4): its minimal-area
+//! The extended domain of a face (paper section 3, docs/design.md section 4): its minimal-area
 //! enclosing parallelogram as a frame `x(s,t) = origin + s*u + t*v`, `(s,t)` in `[0,1]^2`, and the
 //! face as a polygon with holes in `(s, t)` with its trapezoidal map.
 //!

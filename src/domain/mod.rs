@@ -14,7 +14,7 @@
 //! `s, t >= 0, s + t <= 1`. Invariant: `u x v` points along the side's normal (the back side of a
 //! double-sided face swaps `u` and `v`), so every root emits and receives on the side `u x v` faces.
 //!
-//! Submodules (the extended-domain geometry, DESIGN.md section 4): [`predicates`] (exact
+//! Submodules (the extended-domain geometry, docs/design.md section 4): [`predicates`] (exact
 //! orientation, lexicographic order), [`hull`] (convex hull), [`parallelogram`] (minimal-area
 //! enclosing parallelogram), [`trapezoidal_map`] (point location), [`coverage`] (face area in a
 //! box, element status), [`extended`] ([`ExtendedDomain`]: frame, rings, map and the queries the

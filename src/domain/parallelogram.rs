@@ -1,4 +1,4 @@
-//! The minimal-area enclosing parallelogram of a 2D point set (paper section 3.1, DESIGN.md
+//! The minimal-area enclosing parallelogram of a 2D point set (paper section 3.1, docs/design.md
 //! section 4), the extended domain's shape.
 //!
 //! Method (after Schwarz, Teich, Vainshtein, Welzl and Evans, 1995): an optimal parallelogram has

@@ -3,7 +3,7 @@
 //! radiosity jumps along the line they meet on, and the part of it under the upper surface's
 //! footprint (or inside the post) is usually closed off and dark. The triangles of the lower
 //! surface rarely have edges there. This module finds those lines and cuts the triangles along
-//! them, so that face merging can keep the two sides apart (DESIGN.md section 3: the real surfaces).
+//! them, so that face merging can keep the two sides apart (docs/design.md section 3: the real surfaces).
 //!
 //! Owns [`cut_at_contacts`] and [`ContactCut`]. A *contact segment* of a triangle `T` is an edge
 //! of another triangle `S` that lies in `T`'s plane (both ends within the plane tolerance), crosses

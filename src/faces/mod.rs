@@ -1,6 +1,6 @@
 //! Faces: the planar surfaces the solver sees, built from the scene's triangles.
 //!
-//! [`merge_planar_faces`] rebuilds the scene's real surfaces (DESIGN.md section 3): corners are
+//! [`merge_planar_faces`] rebuilds the scene's real surfaces (docs/design.md section 3): corners are
 //! welded ([`WELD_REL`]), edges are split at T-junctions, and triangles sharing an edge (or part of
 //! one), a material and a side mode, and lying in one plane ([`NORMAL_ANGLE_RAD`],
 //! [`PLANE_OFFSET_REL`]) become one face with an outer ring and holes. Faces that touch only at a
@@ -156,7 +156,7 @@ pub const PLANE_OFFSET_REL: f64 = WELD_REL;
 pub const NORMAL_ANGLE_RAD: f64 = 1e-3;
 
 /// A 4-vertex face is a parallelogram when `|a - b + c - d|` is within this fraction of its
-/// diameter (DESIGN.md section 3).
+/// diameter (docs/design.md section 3).
 pub const PARALLELOGRAM_REL: f64 = 1e-6;
 
 /// The kind of a face with these rings: a triangle (3 vertices, no hole), a parallelogram (4
@@ -198,7 +198,7 @@ impl FaceSet {
     }
 }
 
-/// Merges the scene's triangles into planar faces with holes (DESIGN.md section 3).
+/// Merges the scene's triangles into planar faces with holes (docs/design.md section 3).
 ///
 /// A triangle is dropped (and counted in `degenerate_dropped`) when its area is at most
 /// [`DEGENERATE_AREA_REL`] times the squared diagonal, or when welding makes it flat (two corners

@@ -1,11 +1,11 @@
 //! Punctual lights (`KHR_lights_punctual`): point, spot and directional lights shine directly on
-//! the receivers as the solve's first shots (DESIGN.md 5.1).
+//! the receivers as the solve's first shots (docs/design.md section 5.1).
 //!
 //! Owns the glTF light formulas: [`unoccluded_irradiance`] (the light's irradiance at a point
 //! before occlusion), [`shadow_target`] and the power estimate that scales the error threshold.
 //! A light shoots as a `source::LightSource`, through the same transfer and oracle as elements.
 //! The light's delivered power, the integral of that irradiance over the receivers, counts in
-//! the emitted power of `unshot_ratio` (CONTRACT). Units: intensity in W/sr (candela) for point
+//! the emitted power of `unshot_ratio` (docs/contract.md). Units: intensity in W/sr (candela) for point
 //! and spot lights, irradiance in W/m^2 (lux) for directional lights.
 
 use super::mean_rgb_sum;

@@ -4,7 +4,7 @@
 //! with the exact point-to-polygon form factor for the constant part, visibility by rays), the
 //! refinement oracle and the shooting loop. It does no I/O and knows neither glTF nor HTTP.
 //!
-//! Shooting (DESIGN.md 5.1): emitters first shoot their emission (the "direct" shots, recorded
+//! Shooting (docs/design.md section 5.1): emitters first shoot their emission (the "direct" shots, recorded
 //! apart so `--indirect-only` can leave them out); then the root with the most unshot power shoots
 //! until `unshot_ratio = unshot power / emitted power <= target`. Links are not cached: each
 //! transfer is recomputed when its source shoots again (memory stays proportional to elements).
@@ -59,7 +59,7 @@ pub const MIN_EDGE_REL: f64 = 1e-3;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
 
-/// Solver settings (the CONTRACT's solver options that reach the solver).
+/// Solver settings (the solver options of docs/contract.md that reach the solver).
 #[derive(Debug, Clone)]
 pub struct SolverParams {
     pub order: usize,

@@ -1,4 +1,4 @@
-//! The shooting loop (DESIGN.md 5.1) as named steps: shoot the lights (punctual lights first;
+//! The shooting loop (docs/design.md section 5.1) as named steps: shoot the lights (punctual lights first;
 //! what they deliver counts as emitted), then report, pick the shooter (the next emitter's
 //! direct shot, else the root with the most unshot power), shoot (every receiver in parallel,
 //! the shooter read-only), clear what was shot; until the unshot ratio reaches the target.

@@ -1,7 +1,7 @@
 //! Visibility: a BVH (obvhs' compressed wide BVH) over the scene's occluding triangles and an
 //! open-segment occlusion test.
 //!
-//! Conventions (DESIGN.md section 6): every triangle occludes, whatever its sides or emission; the
+//! Conventions (docs/design.md section 6): every triangle occludes, whatever its sides or emission; the
 //! faces a link joins never occlude it (they are passed as `ignore`); hits within
 //! `end_epsilon = ENDPOINT_EPSILON_REL * scene diagonal` of either end of a segment do not count.
 //! Boxes are padded by `BOX_PADDING_REL * diagonal` (unpadded boxes on axis-aligned walls are slow

@@ -1,7 +1,7 @@
 //! Helpers shared by integration tests, one copy each (each test file that needs them says
 //! `mod common;`; each uses some of them, hence `dead_code` allowed here):
 //! - `service`: an in-process server on port 0, a client, submitting and polling jobs, multipart
-//!   bodies, `expect_error` (the CONTRACT's error JSON);
+//!   bodies, `expect_error` (the error JSON of docs/contract.md);
 //! - `scenes`: the sample scenes those tests submit;
 //! - `gltf`: editing GLBs, palette images, the glowing quad of the texture tests;
 //! - `faces`: merging with the validator's check;

@@ -1,6 +1,6 @@
 //! Talking to the HTTP job service the way its tests do: a fresh data directory, an in-process
 //! server on 127.0.0.1 port 0, a client, submitting and polling jobs, reading results and probes,
-//! multipart bodies, and the checks of the CONTRACT's error JSON
+//! multipart bodies, and the checks of the error JSON of docs/contract.md
 //! `{"error": {"code": "snake_case", "message": "..."}}` (`error_of`, `expect_error`, and
 //! `expect_raw_error` for requests written by hand on a socket).
 //!
@@ -196,7 +196,7 @@ pub async fn wait_for(
     wait_until(client, base, id, timeout, |job| job["state"] == state).await
 }
 
-/// Checks the CONTRACT error shape (the status, a JSON body, a snake_case `code`, a non-empty
+/// Checks the error shape of docs/contract.md (the status, a JSON body, a snake_case `code`, a non-empty
 /// `message`) and returns the error object.
 pub async fn error_of(response: Response, status: StatusCode) -> Value {
     let url = response.url().clone();

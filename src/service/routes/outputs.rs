@@ -54,7 +54,7 @@ pub async fn get_result(
 }
 
 /// `POST /v1/jobs/{id}/probes`: the probe points file in the body; the answer is
-/// `probe_values.json` (CONTRACT), evaluated on the job's solution: in memory for the most recent
+/// `probe_values.json` (docs/contract.md), evaluated on the job's solution: in memory for the most recent
 /// succeeded jobs (`--probe-cache-jobs`), else loaded from the job's `solution.bin`. A job without
 /// a usable one (finished by an older version, or damaged) is 409 `solution_unavailable`.
 pub async fn post_probes(
