@@ -1,10 +1,11 @@
 //! wavrad: wavelet radiosity on arbitrary planar surfaces (Holzschuch, Cuny, Alonso, EGWR 2000),
 //! baking diffuse lightmaps for glTF scenes.
 //!
-//! Modules in data-flow order; each depends only on those before it (see ARCHITECTURE.md):
-//! `scene` -> `faces` -> `domain` -> `solver` -> `output` -> `service` / `cli`; `reference` measures
-//! solutions against Monte Carlo references (tests and benches); `shuffle` is the deterministic
-//! shuffle several stages share.
+//! Modules in data-flow order; each depends only on those before it (`tests/architecture.rs`
+//! enforces the order, see ARCHITECTURE.md): `scene` -> `faces` -> `domain` -> `solver` ->
+//! `pipeline` -> `output` -> `job` -> `service` -> `cli`; `reference` measures solutions against
+//! Monte Carlo references (tests and benches); `shuffle` (the deterministic shuffle several stages
+//! share) and `fsutil` (atomic writes) are utilities any layer may use.
 
 // Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;
 // iterator chains would hide the formulas.

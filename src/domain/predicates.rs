@@ -1,6 +1,6 @@
 //! Exact 2D predicates shared by the extended-domain geometry: the orientation test (Shewchuk's
-//! adaptive `orient2d` from the `robust` crate, exact for any finite `f64` input), `on_segment`
-//! and `signed_area`, which are the face geometry's (`crate::faces::geom`, re-exported here so the
+//! adaptive `orient2d` from the `robust` crate, exact for any finite `f64` input) and
+//! `signed_area`, which are the face geometry's (`crate::faces::geom`, re-exported here so the
 //! faces and the domain decide turns and areas with one piece of code), and the lexicographic
 //! point order `(x, then y)` that the trapezoidal map and the hull use as their "left of" (a
 //! symbolic shear, so vertical segments and equal x-coordinates need no special case).

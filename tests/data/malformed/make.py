@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes the malformed glTF/GLB corpus of tests/http.rs (malformed_files_get_4xx_and_the_server_stays_up)
+"""Writes the malformed glTF/GLB corpus of tests/http_uploads.rs (malformed_files_get_4xx_and_the_server_stays_up)
 and the fuzz seed corpus. Run from this directory: python3 make.py"""
 import base64, json, struct
 
