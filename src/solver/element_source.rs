@@ -319,6 +319,8 @@ impl Source for ElementSource<'_> {
         let mut visible_weight = 0.0;
         let mut front_points = 0usize;
         let (mut front_weight, mut front_visible) = (0.0, 0.0);
+        let visibility = self.shot.visibility;
+        let mut rays = 0;
         for (l, ql) in self.rule.iter().enumerate() {
             if alpha[l] <= 0.0 {
                 continue;
@@ -327,7 +329,8 @@ impl Source for ElementSource<'_> {
                 * sp.area
                 * ql.weight
                 * alpha[l];
-            let vis = self.shot.visibility.visible(x, self.ys_vis[l], ignore);
+            rays += 1;
+            let vis = visibility.visible_uncounted(x, self.ys_vis[l], ignore);
             if vis {
                 out.any_visible = true;
                 visible_weight += ql.weight * alpha[l];
@@ -346,6 +349,7 @@ impl Source for ElementSource<'_> {
                 }
             }
         }
+        visibility.count_rays(rays);
         if front_weight > 0.0 {
             // Mixed verdicts at this point, among the source points it exchanges light with:
             // its share of the source is only as good as the source's samples.
