@@ -25,6 +25,7 @@ USER wavrad
 VOLUME ["/data"]
 EXPOSE 8080
 ENV RUST_LOG=info
+# The health check asks the address CMD listens on; change both together (`--addr`).
 HEALTHCHECK --interval=30s --timeout=3s --start-period=10s CMD ["curl", "-fsS", "http://127.0.0.1:8080/healthz"]
 ENTRYPOINT ["/usr/local/bin/wavrad"]
 CMD ["serve", "--addr", "0.0.0.0:8080", "--data-dir", "/data"]

@@ -236,13 +236,13 @@ fn solve(a: SolveArgs) -> ExitCode {
             Err(e) => return bad_input(format!("{}: {e}", path.display())),
         },
     };
-    if let Err(e) = check_out_dir(&a.out) {
-        return bad_input(e);
-    }
     let scene = match load(&a.scene, a.max_triangles) {
         Ok(s) => s,
         Err(code) => return code,
     };
+    if let Err(e) = check_out_dir(&a.out) {
+        return bad_input(e);
+    }
     for w in &scene.warnings {
         tracing::warn!("{w}");
     }
@@ -386,8 +386,9 @@ fn listen_address(text: &str) -> Result<std::net::SocketAddr, String> {
         .ok_or_else(|| format!("{text} resolves to no address; {hint}"))
 }
 
-/// `solve --out`: the directory is created and must take a file, checked before the solve so a
-/// long bake never fails at its end for want of a writable directory (`tests::out_dir_is_checked`).
+/// `solve --out`: the directory is created and must take a file, checked after the scene loads
+/// and before the solve, so a long bake never fails at its end for want of a writable directory
+/// (`tests::out_dir_is_checked`).
 fn check_out_dir(dir: &std::path::Path) -> Result<(), String> {
     let fail = |e: std::io::Error| {
         format!(

@@ -41,7 +41,11 @@ pub fn write_atomic_with(
     let tmp = temporary_path(path);
     let result = (|| {
         write(&tmp)?;
-        std::fs::File::open(&tmp)?.sync_all()?;
+        // A writable handle: some systems refuse to flush a read-only one.
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&tmp)?
+            .sync_all()?;
         std::fs::rename(&tmp, path)?;
         sync_parent(path)
     })();

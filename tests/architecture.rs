@@ -50,21 +50,84 @@ const LAYERS: &[(&str, u32)] = &[
     ("cli", 9),
 ];
 
+/// How many modules below the crate root the file `path` is (`src/job.rs` and
+/// `src/output/mod.rs` 1, `src/output/probes.rs` 2).
+fn module_depth(path: &Path) -> usize {
+    let rel = path.strip_prefix(src()).expect("a file under src");
+    let parts = rel.components().count();
+    if rel.file_stem().is_some_and(|s| s == "mod") {
+        parts - 1
+    } else {
+        parts
+    }
+}
+
 fn rank(module: &str) -> Option<u32> {
     LAYERS.iter().find(|(m, _)| *m == module).map(|&(_, r)| r)
 }
 
-/// The crate modules `text` (a file of module `module`) names through `crate::...` that run back
-/// up the data flow or sideways into a module of the same rank.
-fn imports_against_the_flow(module: &str, text: &str) -> Vec<String> {
+fn identifier(text: &str) -> String {
+    text.chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect()
+}
+
+/// The first segments of the paths after `prefix` at the start of `text`: one name for
+/// `job::X`, every name for a group `{job::X, solver::{Y, Z}}`.
+fn first_segments(text: &str) -> Vec<String> {
+    let text = text.trim_start();
+    let Some(group) = text.strip_prefix('{') else {
+        return vec![identifier(text)];
+    };
+    let (mut names, mut depth, mut expect_name) = (Vec::new(), 1, true);
+    for (i, c) in group.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' if depth == 1 => break,
+            '}' => depth -= 1,
+            ',' if depth == 1 => expect_name = true,
+            c if expect_name && depth == 1 && !c.is_whitespace() => {
+                names.push(identifier(&group[i..]));
+                expect_name = false;
+            }
+            _ => {}
+        }
+    }
+    names
+}
+
+/// The crate modules that `text`, a file `depth` modules below the crate root in module
+/// `module`, names through `crate::...` (single or grouped) or through a `super::` chain that
+/// climbs to the crate root, and that run back up the data flow or sideways into a module of the
+/// same rank. (A chain that stops below the root names a sibling, which is not checked.)
+fn imports_against_the_flow(module: &str, depth: usize, text: &str) -> Vec<String> {
     let own = rank(module).expect("module listed in LAYERS");
-    let mut out = Vec::new();
+    let mut names = Vec::new();
     for (at, _) in text.match_indices("crate::") {
-        let name: String = text[at + "crate::".len()..]
-            .chars()
-            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-            .collect();
-        if name == module {
+        names.extend(first_segments(&text[at + "crate::".len()..]));
+    }
+    let mut rest = text;
+    while let Some(at) = rest.find("super::") {
+        // A whole chain, counted once: skip a `super::` that continues one.
+        let before = &rest[..at];
+        let mut chain = 0;
+        let mut after = &rest[at..];
+        while let Some(next) = after.strip_prefix("super::") {
+            chain += 1;
+            after = next;
+        }
+        if !before.ends_with("super::") && chain >= depth {
+            names.extend(
+                first_segments(after)
+                    .into_iter()
+                    .filter(|n| rank(n).is_some()),
+            );
+        }
+        rest = after;
+    }
+    let mut out = Vec::new();
+    for name in names {
+        if name == module || name == "self" {
             continue;
         }
         // An unknown name is an error too: a new module must take its place in LAYERS.
@@ -78,27 +141,57 @@ fn imports_against_the_flow(module: &str, text: &str) -> Vec<String> {
 
 #[test]
 fn the_layer_check_catches_an_import_that_runs_back_up() {
+    let check = imports_against_the_flow;
     assert_eq!(
-        imports_against_the_flow(
+        check(
             "output",
+            1,
             "use crate::job::JobParams;\nuse crate::solver::Solution;"
         ),
         ["job"]
     );
     assert_eq!(
-        imports_against_the_flow("solver", "let x = crate::pipeline::prepare(s);"),
+        check("solver", 2, "let x = crate::pipeline::prepare(s);"),
         ["pipeline"]
     );
     assert_eq!(
-        imports_against_the_flow(
+        check(
             "job",
+            1,
             "use crate::reference::x; use crate::fsutil::write_atomic;"
         ),
         ["reference"]
     );
-    assert!(imports_against_the_flow(
+    // Grouped imports: every group member is checked.
+    assert_eq!(
+        check(
+            "output",
+            2,
+            "use crate::{\n    scene::Scene,\n    service::{a, b},\n};"
+        ),
+        ["service"]
+    );
+    // `super::` chains that climb to the crate root are crate paths.
+    assert_eq!(check("output", 1, "use super::job::JobParams;"), ["job"]);
+    assert_eq!(
+        check("service", 3, "use super::super::super::cli::Cli;"),
+        ["cli"]
+    );
+    assert_eq!(
+        check("output", 2, "use super::super::{job::X, scene::Y};"),
+        ["job"]
+    );
+    // Downward imports and siblings below the root pass.
+    assert!(check(
         "service",
-        "use crate::job::JobParams; use crate::scene::Scene;"
+        1,
+        "use crate::job::JobParams; use crate::{scene::Scene, solver::Solution};"
+    )
+    .is_empty());
+    assert!(check(
+        "service",
+        3,
+        "use super::super::jobs::Job; use super::outputs::get_file;"
     )
     .is_empty());
 }
@@ -130,7 +223,7 @@ fn crate_modules_depend_only_on_earlier_layers() {
         }
         for f in files {
             let text = std::fs::read_to_string(&f).unwrap();
-            let wrong = imports_against_the_flow(module, &text);
+            let wrong = imports_against_the_flow(module, module_depth(&f), &text);
             assert!(
                 wrong.is_empty(),
                 "{} uses {wrong:?}: a module may only use modules before it in the data flow",

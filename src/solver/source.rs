@@ -1,8 +1,10 @@
 //! What a transfer asks of whatever shoots: the [`Source`] interface, shared by elements of the
 //! shooter (`element_source.rs`) and punctual lights ([`LightSource`]), after pbrt-v4's `Light`
 //! as `SampleLd` uses it. A source answers "irradiance at x" (occlusion included), "unoccluded
-//! irradiance at x", and "where do the shadow rays from x go" (to check the quadrature's
-//! verdict); the transfer (`transfer.rs`) and the oracle (`oracle.rs`) know nothing else of it.
+//! irradiance at x", and "where do the shadow rays from x go" (corner and spread rays, to check
+//! the quadrature's verdict), and beside those which faces its rays ignore, what the receiver's
+//! points missed of it (reciprocity) and how it splits; the transfer (`transfer.rs`) and the
+//! oracle (`oracle.rs`) know nothing else of it.
 //!
 //! Also owns [`ReceiverNode`], the receiving side of one interaction.
 //!
