@@ -3,35 +3,13 @@
 //!
 //! Run: `cargo bench --bench faces` (reads `../shared/scenes/`; prints SKIP when it is absent).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
 
 use wavrad::faces::merge_planar_faces;
 
 const RUNS: usize = 5;
 const TRIANGLE_LIMIT: usize = 10_000_000;
-
-fn scenes(dir: &Path) -> Vec<PathBuf> {
-    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return;
-        };
-        for e in entries.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                // `original/` holds untouched upstream files, not scenes.
-                if p.file_name().is_some_and(|n| n != "original") {
-                    walk(&p, out);
-                }
-            } else if p.extension().is_some_and(|x| x == "gltf" || x == "glb") {
-                out.push(p);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    walk(dir, &mut out);
-    out
-}
 
 fn main() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
@@ -43,7 +21,7 @@ fn main() {
         return;
     }
     let mut rows = Vec::new();
-    for path in scenes(&dir) {
+    for path in wavrad::scene::scene_files(&dir) {
         let name = path
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())

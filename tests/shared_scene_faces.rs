@@ -24,26 +24,7 @@ fn shared_scenes() -> Option<Vec<PathBuf>> {
         );
         return None;
     }
-    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return;
-        };
-        for e in entries.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                // Untouched upstream files, not scenes of the project.
-                if p.file_name().is_some_and(|n| n != "original") {
-                    walk(&p, out);
-                }
-            } else if p.extension().is_some_and(|x| x == "gltf" || x == "glb") {
-                out.push(p);
-            }
-        }
-    }
-    let mut out = Vec::new();
-    walk(&dir, &mut out);
-    out.sort();
-    Some(out)
+    Some(wavrad::scene::scene_files(&dir))
 }
 
 #[test]

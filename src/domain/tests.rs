@@ -732,26 +732,9 @@ fn map_of_a_comb_with_shared_x_coordinates() {
 
 /// The scenes of `../shared/scenes` (absent in a fresh clone: the test then skips).
 fn shared_scenes() -> Vec<std::path::PathBuf> {
-    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
-        let Ok(entries) = std::fs::read_dir(dir) else {
-            return;
-        };
-        for e in entries.flatten() {
-            let p = e.path();
-            if p.is_dir() {
-                if p.file_name().is_some_and(|n| n != "original") {
-                    walk(&p, out);
-                }
-            } else if p.extension().is_some_and(|x| x == "gltf" || x == "glb") {
-                out.push(p);
-            }
-        }
-    }
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    let mut out = Vec::new();
-    walk(&dir, &mut out);
-    out.sort();
-    out
+    crate::scene::scene_files(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"),
+    )
 }
 
 /// On every real extended face: a domain framing its surfaces, the trapezoidal map built (no

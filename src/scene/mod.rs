@@ -25,6 +25,32 @@ pub use error::{Problem, SceneError};
 pub use gltf_import::{load_scene, load_scene_from_path, ExternalFiles};
 pub use texture::{srgb_to_linear, Texture, TextureSlot, UvTransform, Wrap};
 
+/// Every `.gltf` and `.glb` file under `dir`, sorted, skipping `original/` folders (untouched
+/// upstream files, not scenes); empty when `dir` is absent. For the tests and benchmarks that
+/// sweep `../shared/scenes`.
+#[cfg(any(test, feature = "test-support"))]
+pub fn scene_files(dir: &std::path::Path) -> Vec<std::path::PathBuf> {
+    fn walk(dir: &std::path::Path, out: &mut Vec<std::path::PathBuf>) {
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                if p.file_name().is_some_and(|n| n != "original") {
+                    walk(&p, out);
+                }
+            } else if p.extension().is_some_and(|x| x == "gltf" || x == "glb") {
+                out.push(p);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, &mut out);
+    out.sort();
+    out
+}
+
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
