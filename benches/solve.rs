@@ -3,6 +3,12 @@
 //! peak resident memory it reports (result.json `stats.peak_memory_bytes`, VmHWM) is its own.
 //!
 //! Run: `cargo bench --bench solve` (release build; a few minutes on two cores).
+//!
+//! `cargo bench --bench solve -- scale [--max-n N] [--no-zdm2] [--max-seconds S]` runs the scaling
+//! benchmark of issue 17 instead (`solve/scale.rs`); with no argument the output above is unchanged.
+
+#[path = "solve/scale.rs"]
+mod scale;
 
 use std::path::Path;
 use std::process::Command;
@@ -13,6 +19,25 @@ const SCENES: [&str; 2] = [
 ];
 
 fn main() {
+    // Cargo passes `--bench` to every benchmark binary; the rest is the user's, after `--`.
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    match args.first().map(String::as_str) {
+        None => samples(),
+        Some("scale") => scale::run(&args[1..]),
+        Some(other) => {
+            eprintln!(
+                "unknown argument '{other}': `cargo bench --bench solve [-- scale [OPTIONS]]`"
+            );
+            std::process::exit(2);
+        }
+    }
+}
+
+/// The bundled samples at M1-M3 in both domain modes (the default output).
+fn samples() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let out = std::env::temp_dir().join(format!("wavrad-bench-solve-{}", std::process::id()));
     println!(

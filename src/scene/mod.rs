@@ -12,6 +12,10 @@
 //! Degenerate (zero-area) triangles are kept here; the face builder drops and counts them.
 
 mod buffers;
+/// `city_glb`, N instances of one lit building under one sky panel, for the scaling benchmark and
+/// tests: compiled like `gltf_writer` (unit tests and the `test-support` feature).
+#[cfg(any(test, feature = "test-support"))]
+pub mod city;
 mod error;
 mod gltf_import;
 mod gltf_textures;
