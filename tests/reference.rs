@@ -33,12 +33,21 @@ fn measure() -> Vec<(String, ReferenceError, f64, f64)> {
         .collect();
     sets.sort();
     assert_eq!(sets.len(), 4, "the four data sets of ../shared/reference");
+    // `WAVRAD_REFERENCE_SETS=cornell_box,kenney_building_small_c_lit` measures only those sets
+    // (a quicker check while working; the test passes only on what it measured).
+    let only = std::env::var("WAVRAD_REFERENCE_SETS").ok();
     let mut out = Vec::new();
     for set_dir in sets {
         let name = set_dir
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|s| s == name))
+        {
+            continue;
+        }
         let set = ReferenceSet::load(&set_dir).expect("reference.json reads");
         let scene = load_scene_from_path(&set.scene_in(root()), 5_000_000).expect("scene loads");
         let start = Instant::now();

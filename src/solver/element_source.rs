@@ -291,6 +291,14 @@ impl<'s> ElementSource<'s> {
         }
     }
 
+    /// A bound on the power the element may send (channels summed and weighted as the oracle's
+    /// errors): its strength plus a margin for its non-constant part (no basis function of M1-M3
+    /// exceeds 6 in magnitude on its element: `far_field.rs` tests it), times its area (an extended element's domain,
+    /// at least the face inside it).
+    pub(super) fn power_bound(&self) -> f64 {
+        (self.strength + 6.0 * self.variation) * self.patch.area
+    }
+
     /// Do receiver point `x` (normal `n`) and the source's point `y` exchange light?
     fn exchange(&self, x: DVec3, n: DVec3, y: DVec3) -> bool {
         (x - y).dot(self.root.normal) > 0.0 && (y - x).dot(n) > 0.0

@@ -6,7 +6,7 @@
 //!
 //! Shooting (docs/design.md section 5.1): emitters first shoot their emission (the "direct" shots, recorded
 //! apart so `--indirect-only` can leave them out); then the root with the most unshot power shoots
-//! until `unshot_ratio = unshot power / emitted power <= target`. Links are not cached: each
+//! until `unshot_ratio = unshot power / direct power received <= target`. Links are not cached: each
 //! transfer is recomputed when its source shoots again (memory stays proportional to elements).
 //! Receivers of one shot are processed in parallel (rayon); the shooter is read-only during it,
 //! and is refined only virtually (sub-elements computed by push, not stored).
@@ -15,6 +15,7 @@ pub(crate) mod basis;
 pub(crate) mod cover;
 mod element;
 mod element_source;
+mod far_field;
 pub(crate) mod hierarchy;
 pub mod kernel;
 pub(crate) mod lights;

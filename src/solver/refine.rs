@@ -8,6 +8,7 @@
 //! on; the node-sum check (`node_sums.rs`) takes back exactly what `gather` added.
 
 use super::basis::MAX_FUNCTIONS;
+use super::far_field::Sphere;
 use super::hierarchy::Hierarchy;
 use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
@@ -58,6 +59,8 @@ pub(super) struct ShotContext<'a> {
     pub touching: &'a AtomicU64,
     pub node_sum_splits: &'a AtomicU64,
     pub cancel: &'a AtomicBool,
+    /// Each root's bounding sphere (`far_field.rs`).
+    pub spheres: &'a [Sphere],
 }
 
 impl ShotContext<'_> {
@@ -146,6 +149,14 @@ impl ShotContext<'_> {
                 part.clone(),
             );
         }
+    }
+
+    /// Gathers a far link (`far_field.rs`): a constant irradiance `e` at the root node.
+    pub fn accept_far(&self, rcv: &mut Hierarchy, e: Rgb) {
+        self.links.fetch_add(1, Ordering::Relaxed);
+        let mut dh = [[0.0; 3]; MAX_FUNCTIONS];
+        dh[0] = e;
+        gather(rcv, 0, &dh[..rcv.len]);
     }
 
     /// The first of node `b`'s four children, splitting `b` first if it is a leaf (the new

@@ -9,9 +9,10 @@
 use super::basis::MAX_FUNCTIONS;
 use super::cover::{self, face_integral};
 use super::element_source::{ElementShot, SourceElement};
+use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
 use super::lights;
-use super::refine::ShotContext;
+use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::ShotRecord;
 use super::source::LightShot;
@@ -53,6 +54,7 @@ pub fn solve(
         .collect();
     let mut emitted = emitted_power(&roots);
     let counters = Counters::default();
+    let spheres: Vec<Sphere> = roots.iter().map(Sphere::of_root).collect();
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
@@ -75,6 +77,7 @@ pub fn solve(
         touching: &counters.touching,
         node_sum_splits: &counters.node_sum_splits,
         cancel,
+        spheres: &spheres,
     };
     let mut convergence = Vec::new();
     let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies);
@@ -103,10 +106,18 @@ pub fn solve(
         ..ctx
     };
     let facing_eps = 1e-9 * diagonal;
+    let mut direct_left = direct_queue.len();
     let mut direct_iter = direct_queue.into_iter();
+    // What the ratio is taken against: the emitted power until the direct shots are done, then
+    // the direct light the surfaces received (`received_direct`).
+    let mut ratio_base = if direct_left == 0 {
+        received_direct(&hierarchies, &roots)
+    } else {
+        emitted_total
+    };
     let mut stop = StopReason::Converged;
     loop {
-        let ratio = unshot_ratio(&unshot, emitted_total);
+        let ratio = unshot_ratio(&unshot, ratio_base);
         let progress = Progress {
             iterations,
             unshot_ratio: ratio,
@@ -136,6 +147,12 @@ pub fn solve(
         clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
         unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
         iterations += 1;
+        if direct {
+            direct_left -= 1;
+            if direct_left == 0 {
+                ratio_base = received_direct(&hierarchies, &roots);
+            }
+        }
     }
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {
@@ -170,9 +187,22 @@ fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
     mean_rgb_sum(face_integral(h, &h.u, r))
 }
 
-fn unshot_ratio(unshot: &[f64], emitted_total: f64) -> f64 {
-    if emitted_total > 0.0 {
-        unshot.iter().sum::<f64>() / emitted_total
+/// The direct light (from emitters and punctual lights) the surfaces received, in W: the
+/// stopping rule's base once the direct shots are done. In a closed scene it is the emitted power;
+/// under a sky most of the emitted power leaves the scene, and unshot / emitted would understate
+/// what is left to bounce inside (docs/design.md section 5.1; `tests/solver.rs`
+/// `the_stopping_rule_counts_the_light_that_stays_in_an_open_scene`).
+fn received_direct(hierarchies: &[Hierarchy], roots: &[ElementRoot]) -> f64 {
+    hierarchies
+        .iter()
+        .zip(roots)
+        .map(|(h, r)| mean_rgb_sum(face_integral(h, &h.hd, r)))
+        .sum()
+}
+
+fn unshot_ratio(unshot: &[f64], base: f64) -> f64 {
+    if base > 0.0 {
+        unshot.iter().sum::<f64>() / base
     } else {
         0.0
     }
@@ -319,6 +349,11 @@ fn shoot(
         source_face_means: source_face_means.as_deref(),
         min_edge: ctx.min_edge,
     };
+    // What the shooter may send at most: receivers whose share of it is within the threshold
+    // take it as one far link (`far_field.rs`).
+    let power_bound = shot
+        .source(&root_element, [1.0; 3])
+        .map_or(0.0, |s| s.power_bound());
     hierarchies
         .par_iter_mut()
         .zip(unshot.par_iter_mut())
@@ -330,10 +365,22 @@ fn shoot(
             {
                 return;
             }
-            let mut record = ShotRecord::default();
-            ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
-            if ctx.node_sums {
-                ctx.refine_by_node_sums(&shot, record, ri, h);
+            let is_far = power_bound
+                * far_field::transfer_fraction_bound(&ctx.spheres[shooter], &ctx.spheres[ri])
+                <= ctx.threshold;
+            if is_far {
+                let e = shot
+                    .source(&root_element, [1.0; 3])
+                    .and_then(|s| far_field::far_irradiance(&s, &roots[ri]));
+                if let Some(e) = e {
+                    ctx.accept_far(h, e);
+                }
+            } else {
+                let mut record = ShotRecord::default();
+                ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+                if ctx.node_sums {
+                    ctx.refine_by_node_sums(&shot, record, ri, h);
+                }
             }
             if h.touched {
                 h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);

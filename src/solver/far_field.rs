@@ -1,0 +1,134 @@
+//! Far receivers of a shot: a receiver root whose whole transfer from the shooter is bounded
+//! within the oracle's threshold, before any ray or quadrature, takes the shot as one constant
+//! link: the source's irradiance at the receiver's centre (its quadrature, its rays, its exact
+//! form factor), a constant over the root. The oracle would accept a link of that size at the root whatever its visibility
+//! (`oracle.rs`: an error above the threshold is needed for any other verdict), so the
+//! refinement's result is within the same budget; what it saves is the quadrature at every rule
+//! and check point of every far receiver, shot after shot, which made a level's cost grow like
+//! the square of its faces.
+//!
+//! The bound: a Lambertian source's power into a cone of half-angle `theta` is at most
+//! `sin^2 theta` of it, and a sphere of radius `r` seen from distance `d` subtends
+//! `sin theta = r / d`; so a receiver in a sphere of radius `r_R` whose centre lies `D` from the
+//! shooter's sphere's centre (radius `r_S`) receives at most `P (r_R / (D - r_S))^2` of the power
+//! `P` the shooter may send. Pinned by `far_field_bound_holds_for_random_pairs` below and, end to
+//! end, by the reference and analytic tests.
+//!
+//! Invariant: a far link is gathered at the receiver's root node only, and counted like any link.
+
+use super::element::visibility_point;
+use super::source::Source;
+use crate::domain::{ElementRoot, Shape};
+use crate::scene::Rgb;
+use glam::{DVec2, DVec3};
+
+/// A root's bounding sphere.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Sphere {
+    pub centre: DVec3,
+    pub radius: f64,
+}
+
+impl Sphere {
+    /// The sphere around a root's corners (its whole domain for an extended root).
+    pub fn of_root(root: &ElementRoot) -> Self {
+        let corners = root.corners();
+        let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
+        let radius = corners
+            .iter()
+            .map(|c| c.distance(centre))
+            .fold(0.0, f64::max);
+        Sphere { centre, radius }
+    }
+}
+
+/// The largest fraction of the power leaving (any point of) `source` that can reach `receiver`:
+/// `(r_R / (D - r_S))^2`, or 1 when the spheres are too close for the bound.
+pub(super) fn transfer_fraction_bound(source: &Sphere, receiver: &Sphere) -> f64 {
+    let d = source.centre.distance(receiver.centre) - source.radius;
+    if d <= receiver.radius {
+        1.0
+    } else {
+        (receiver.radius / d).powi(2)
+    }
+}
+
+/// The irradiance one far link delivers to `root`: the source's at the receiver's centre (its
+/// stand-in on an extended face); `None` when the centre receives nothing from it.
+pub(super) fn far_irradiance(source: &impl Source, root: &ElementRoot) -> Option<Rgb> {
+    let st = match root.shape {
+        Shape::Triangle => DVec2::splat(1.0 / 3.0),
+        Shape::Parallelogram => DVec2::splat(0.5),
+    };
+    let x = visibility_point(root, &super::basis::ChildMap::IDENTITY, st);
+    let ignore = source.ignored_faces(root.face.0);
+    source.irradiance_at(x, root.normal, ignore).map(|p| p.e)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solver::basis::{Basis, MAX_FUNCTIONS};
+
+    /// `ElementSource::power_bound` takes no basis function of M1-M3 above 6 in magnitude on its
+    /// element: checked on a fine grid of each shape.
+    #[test]
+    fn no_basis_function_exceeds_the_power_bounds_margin() {
+        for shape in [Shape::Triangle, Shape::Parallelogram] {
+            for order in 1..=3 {
+                let basis = Basis::new(shape, order);
+                let mut phi = [0.0; MAX_FUNCTIONS];
+                for i in 0..=100 {
+                    for j in 0..=100 {
+                        let st = DVec2::new(i as f64, j as f64) / 100.0;
+                        if shape == Shape::Triangle && st.x + st.y > 1.0 {
+                            continue;
+                        }
+                        basis.eval(st, &mut phi[..basis.len()]);
+                        let worst = phi[..basis.len()]
+                            .iter()
+                            .fold(0.0f64, |m, p| m.max(p.abs()));
+                        assert!(worst <= 6.0, "{shape:?} M{order} at {st}: {worst}");
+                    }
+                }
+            }
+        }
+    }
+
+    /// The bound against a brute-force estimate: the largest solid-angle fraction
+    /// `cos-weighted` of a small receiver disc from points of the source never exceeds it.
+    #[test]
+    fn far_field_bound_holds_for_random_pairs() {
+        let mut seed = 12345u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..2000 {
+            let s = Sphere {
+                centre: DVec3::new(rnd(), rnd(), rnd()) * 10.0,
+                radius: 0.1 + rnd(),
+            };
+            let r = Sphere {
+                centre: DVec3::new(rnd(), rnd(), rnd()) * 10.0,
+                radius: 0.1 + rnd(),
+            };
+            let bound = transfer_fraction_bound(&s, &r);
+            // Point-to-sphere: from a point y at distance L of a sphere of radius r, a
+            // Lambertian emitter aimed straight at it sends (r / L)^2 of its power into it.
+            for _ in 0..20 {
+                let dir = DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize_or_zero();
+                let y = s.centre + dir * s.radius * rnd();
+                let l = y.distance(r.centre);
+                let exact = if l <= r.radius {
+                    1.0
+                } else {
+                    (r.radius / l).powi(2)
+                };
+                assert!(exact <= bound + 1e-12, "{exact} > {bound}");
+            }
+        }
+    }
+}
