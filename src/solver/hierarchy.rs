@@ -379,9 +379,9 @@ mod tests {
         let basis = Basis::new(Shape::Parallelogram, 2);
         let mut h = Hierarchy::new(basis.len());
         let per_node = std::mem::size_of::<Node>() + 4 * basis.len() * std::mem::size_of::<Rgb>();
-        let mut leaf = 0;
-        for _ in 0..300 {
-            leaf = h.split(leaf, &basis, Shape::Parallelogram) + 3;
+        // Nodes split in index order: breadth first, every node a leaf when its turn comes.
+        for node in 0..300 {
+            h.split(node, &basis, Shape::Parallelogram);
             let nodes = h.nodes.len();
             let bytes = h.bytes() as usize - std::mem::size_of::<Hierarchy>();
             assert!(

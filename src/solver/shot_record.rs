@@ -84,9 +84,9 @@ pub(super) struct LinkBytes {
 }
 
 impl LinkBytes {
-    /// The larger of two peaks (by bytes; the first on a tie).
+    /// The larger of two peaks: by bytes, then by links (whatever order receivers finish in).
     pub fn max(self, other: LinkBytes) -> LinkBytes {
-        if other.bytes > self.bytes {
+        if (other.bytes, other.links) > (self.bytes, self.links) {
             other
         } else {
             self
