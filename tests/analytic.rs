@@ -1,5 +1,7 @@
 //! Analytic oracles for the whole bake path: furnace, parallel squares, closed-enclosure balance.
 
+mod common;
+
 use glam::DVec3;
 use std::sync::atomic::AtomicBool;
 use wavrad::pipeline::bake;
@@ -188,20 +190,7 @@ fn segment_hits_box(a: DVec3, b: DVec3, lo: DVec3, hi: DVec3) -> bool {
 /// notice the light at the border (rays near the elements' corners) and match a brute-force estimate.
 #[test]
 fn light_reaching_only_the_border_of_an_element_is_found() {
-    let mut b = SceneBuilder::new();
-    let slab = b.material([1.0; 3], [0.0; 3], false);
-    let black = b.material([0.0; 3], [0.0; 3], false);
-    let lamp = b.material([0.0; 3], [1.0; 3], false);
-    let (x, y) = (DVec3::X, DVec3::Y);
-    b.quad(slab, DVec3::new(-0.5, -0.5, 0.0), x, y, 1);
-    let (lo, hi) = (DVec3::new(-0.42, -0.42, 0.0), DVec3::new(0.42, 0.42, 0.3));
-    let (bx, by, bz) = (x * 0.84, y * 0.84, DVec3::Z * 0.3);
-    b.quad(black, lo, bz, by, 1); // normal -x
-    b.quad(black, lo + bx, by, bz, 1); // +x
-    b.quad(black, lo, bx, bz, 1); // -y
-    b.quad(black, lo + by, bz, bx, 1); // +y
-    b.quad(black, lo + bz, bx, by, 1); // top, +z
-    b.quad(lamp, DVec3::new(-2.0, -2.0, 1.0), y * 4.0, x * 4.0, 1); // facing -z
+    let common::scenes::SlabUnderABox { glb, slab, lo, hi } = common::scenes::slab_under_a_box();
 
     // Brute force: mean over the slab of the visible form factor to the lamp (radiance, rho 1).
     let (n, m) = (120, 40);
@@ -242,7 +231,7 @@ fn light_reaching_only_the_border_of_an_element_is_found() {
             tolerance: 1e-6,
             ..params(order)
         };
-        let (_, sol) = solve_glb(&b.to_glb(), p);
+        let (_, sol) = solve_glb(&glb, p);
         let (mut got, mut area) = (0.0, 0.0);
         for (i, r) in sol.roots.iter().enumerate() {
             if r.material == slab {

@@ -299,6 +299,11 @@ fn cli_solve_writes_the_contract_outputs() {
         assert!(result["stats"][counter].is_u64(), "{counter}");
     }
     assert_eq!(result["stats"]["extended_faces"], 0);
+    // What the solve's memory grows with (docs/contract.md): both measured on every solve.
+    for figure in ["bytes_per_element", "bytes_per_link"] {
+        let bytes = result["stats"][figure].as_f64().unwrap_or(f64::NAN);
+        assert!(bytes > 0.0, "{figure}: {bytes}");
+    }
     let csv = std::fs::read_to_string(out_dir.join("convergence.csv")).unwrap();
     assert!(csv.starts_with("seconds,unshot_ratio,elements,links\n") && csv.lines().count() > 2);
     // The EXR reads back with the atlas size result.json states, and coverage alpha in [0, 1].

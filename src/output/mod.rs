@@ -446,6 +446,7 @@ pub fn write_outputs(
             "rays": stats.rays, "refinement_capped": stats.refinement_capped,
             "touching_fallbacks": stats.touching_fallbacks,
             "node_sum_splits": stats.node_sum_splits,
+            "bytes_per_element": stats.bytes_per_element, "bytes_per_link": stats.bytes_per_link,
             "extended_faces": extended_faces, "extended_faces_on_domain": masked_faces.len(),
             "extended_faces_tessellated": extended_tessellated,
             "duplicates_dropped": prepared.faces.duplicates_dropped,

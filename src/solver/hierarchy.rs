@@ -136,6 +136,22 @@ impl Hierarchy {
         &array[node * self.len..(node + 1) * self.len]
     }
 
+    /// The bytes this hierarchy holds, as allocated: the struct, its node entries, the four
+    /// coefficient arrays and the side tables (`SolveStats::bytes_per_element`). Grows with the
+    /// nodes alone (`bytes_grow_with_the_nodes`).
+    pub fn bytes(&self) -> u64 {
+        use std::mem::size_of;
+        let coefficients = [&self.h, &self.hd, &self.u, &self.dh]
+            .iter()
+            .map(|a| a.capacity())
+            .sum::<usize>();
+        (size_of::<Self>()
+            + self.nodes.capacity() * size_of::<Node>()
+            + coefficients * size_of::<Rgb>()
+            + self.covers.capacity() * size_of::<NodeCover>()
+            + self.reflectance.capacity() * size_of::<NodeReflectance>()) as u64
+    }
+
     pub fn leaf_count(&self) -> usize {
         self.nodes.iter().filter(|n| n.is_leaf()).count()
     }
@@ -348,6 +364,30 @@ pub fn child_index(shape: Shape, st: DVec2) -> usize {
             } else {
                 3
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bytes_grow_with_the_nodes() {
+        // Per node: its entry and `len` coefficients in each of the four arrays (twice that at
+        // most, for the vectors' spare capacity); nothing else grows.
+        let basis = Basis::new(Shape::Parallelogram, 2);
+        let mut h = Hierarchy::new(basis.len());
+        let per_node = std::mem::size_of::<Node>() + 4 * basis.len() * std::mem::size_of::<Rgb>();
+        // Nodes split in index order: breadth first, every node a leaf when its turn comes.
+        for node in 0..300 {
+            h.split(node, &basis, Shape::Parallelogram);
+            let nodes = h.nodes.len();
+            let bytes = h.bytes() as usize - std::mem::size_of::<Hierarchy>();
+            assert!(
+                bytes >= per_node * nodes && bytes <= 2 * per_node * nodes,
+                "{bytes} bytes for {nodes} nodes"
+            );
         }
     }
 }

@@ -140,6 +140,15 @@ pub struct SolveStats {
     /// Receiver nodes that gave links back to their children after a shot, because the
     /// sum of their links was not represented within the tolerance (`SolverParams::node_sums`).
     pub node_sum_splits: u64,
+    /// Bytes the element hierarchies hold at the end of the solve (node entries, the coefficient
+    /// arrays `h`, `hd`, `u`, `dh` and the side tables, as allocated: `Hierarchy::bytes`), per
+    /// element (leaf).
+    pub bytes_per_element: f64,
+    /// The node-sum check's per-link entries at their largest in one receiver's record during
+    /// one shot (source path, deviation and coefficients, as allocated), per link that record
+    /// held then; 0 when no link was recorded. Links are kept only within a shot, and what they
+    /// delivered at points is kept per node (`shot_record.rs`).
+    pub bytes_per_link: f64,
 }
 
 /// The sum of a colour's channels (the scalar that powers and errors are compared by).

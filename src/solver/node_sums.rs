@@ -1,20 +1,35 @@
 //! The node-sum check after a shot: each receiver node is judged on the sum of the links it
 //! gathered, and gives back to its children the links that carry the error.
 //!
-//! Invariant: links only ever go to a node's descendants (larger indices), so nodes taken in index
-//! order see complete records, and the result is deterministic.
+//! Invariants: links only ever go to a node's descendants (larger indices), so nodes taken in index
+//! order see complete records, and the result is deterministic; a link given back is sent again
+//! as the very part that sent it (rebuilt from its path) and taken back by exactly what it added.
 
 use super::basis::MAX_FUNCTIONS;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::oracle::{max_deviation, oracle_weight};
 use super::refine::{take_back, Shot, ShotContext};
-use super::shot_record::ShotRecord;
+use super::shot_record::{Parts, ShotRecord};
 use super::MAX_DEPTH;
+use crate::domain::ElementRoot;
 use crate::scene::Rgb;
 use std::sync::atomic::Ordering;
 
 impl ShotContext<'_> {
+    /// The deviation a node of `rroot` is judged by, of a link's or a sum's point values from its
+    /// coefficients: the oracle's at the control and check points, weighted by the root's rho.
+    /// One function for the links (when recorded) and the sums (when judged).
+    pub(super) fn node_sum_deviation<'s>(
+        &'s self,
+        rroot: &ElementRoot,
+    ) -> impl Fn(&[Rgb], &[Rgb; MAX_FUNCTIONS]) -> f64 + 's {
+        let nr = self.bases.of(rroot.shape).len();
+        let weight = oracle_weight(self.quantity, rroot.rho);
+        let psi = self.psi.of(rroot.shape);
+        move |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| max_deviation(psi, e, dh, nr, weight)
+    }
+
     /// After a shot's links to one receiver are gathered, judges each node on the sum of the
     /// links it gathered. A large source split for its visibility sends many links, each of
     /// which passes the oracle while their sum, a shadow's edge across the node, is not
@@ -23,6 +38,10 @@ impl ShotContext<'_> {
     /// every node that received light passes or cannot be split. Nodes are taken in index order:
     /// links only ever go to a node's descendants, whose indices are larger, so a node's record
     /// is complete when it is judged, and the order (so the result) is deterministic.
+    ///
+    /// A link given back is sent again as the part its path leads to from the record's start
+    /// (`Parts`, by the shot's own `children`: the part the recursion had), and taken back by the
+    /// coefficients it was gathered with. The record's largest size goes to `link_records`.
     pub(super) fn refine_by_node_sums<S: Shot>(
         &self,
         shot: &S,
@@ -30,19 +49,32 @@ impl ShotContext<'_> {
         rcv_index: usize,
         rcv: &mut Hierarchy,
     ) {
+        if let Some(root) = record.take_root() {
+            self.judge_nodes(shot, &root, &mut record, rcv_index, rcv);
+        }
+        let peak = record.peak();
+        let mut largest = self.link_records.lock().unwrap_or_else(|e| e.into_inner());
+        *largest = largest.max(peak);
+    }
+
+    fn judge_nodes<S: Shot>(
+        &self,
+        shot: &S,
+        root: &S::Part,
+        record: &mut ShotRecord<S::Part>,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+    ) {
         let rroot = &self.roots[rcv_index];
-        let rbasis = self.bases.of(rroot.shape);
-        let nr = rbasis.len();
-        let weight = oracle_weight(self.quantity, rroot.rho);
-        let psi = self.psi.of(rroot.shape);
-        let deviation =
-            |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| max_deviation(psi, e, dh, nr, weight);
-        while let Some((b, sum)) = record.nodes.pop_first() {
+        let nr = self.bases.of(rroot.shape).len();
+        let deviation = self.node_sum_deviation(rroot);
+        let mut parts = Parts::new(shot, root);
+        while let Some((b, sum)) = record.pop_first() {
             if self.cancel.load(Ordering::Relaxed) {
                 return;
             }
             // One link: its own oracle judged it.
-            if sum.links.len() < 2 {
+            if sum.link_count() < 2 {
                 continue;
             }
             let rnode = rcv.nodes[b];
@@ -50,20 +82,22 @@ impl ShotContext<'_> {
             if rnode.depth >= MAX_DEPTH || rp.min_edge() * 0.5 < self.min_edge {
                 continue;
             }
-            let Some(resend) = sum.links_to_resend(self.threshold / rp.area, deviation) else {
+            let Some(resend) = sum.links_to_resend(self.threshold / rp.area, &deviation) else {
                 continue;
             };
             self.node_sum_splits.fetch_add(1, Ordering::Relaxed);
             // Taken back: no longer links of this node (each is counted again where it lands).
             self.links.fetch_sub(resend.len() as u64, Ordering::Relaxed);
-            for l in &resend {
-                take_back(rcv, b, &l.dh[..nr]);
+            for dh in resend.coefficients() {
+                debug_assert_eq!(dh.len(), nr);
+                take_back(rcv, b, dh);
             }
             let first = self.first_child(rcv, b, rroot);
             debug_assert!(first > b, "children come after their parent");
             for c in 0..4 {
-                for l in &resend {
-                    self.transfer(shot, &l.source, rcv_index, rcv, first + c, &mut record);
+                for &path in &resend.sources {
+                    let part = parts.get(path);
+                    self.transfer_at(shot, part, path, rcv_index, rcv, first + c, record);
                 }
             }
         }

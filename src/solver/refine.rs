@@ -13,7 +13,7 @@ use super::hierarchy::Hierarchy;
 use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
 use super::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
-use super::shot_record::ShotRecord;
+use super::shot_record::{LinkBytes, ShotRecord, SourcePath};
 use super::source::{ReceiverNode, Source};
 use super::transfer::{self, Received};
 use super::visibility::Visibility;
@@ -21,6 +21,7 @@ use super::Quantity;
 use crate::domain::ElementRoot;
 use crate::scene::Rgb;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Mutex;
 
 /// What shoots in one shot.
 pub(super) trait Shot: Sync {
@@ -58,6 +59,8 @@ pub(super) struct ShotContext<'a> {
     pub capped: &'a AtomicU64,
     pub touching: &'a AtomicU64,
     pub node_sum_splits: &'a AtomicU64,
+    /// The largest link record of any receiver in any shot (`ShotRecord::peak`).
+    pub link_records: &'a Mutex<LinkBytes>,
     pub cancel: &'a AtomicBool,
     /// Each root's bounding sphere (`far_field.rs`).
     pub spheres: &'a [Sphere],
@@ -75,6 +78,25 @@ impl ShotContext<'_> {
         b: usize,
         record: &mut ShotRecord<S::Part>,
     ) {
+        if self.node_sums {
+            // Recorded links name their sources by the splits that lead to them from `part`.
+            record.start_from(part);
+        }
+        self.transfer_at(shot, part, SourcePath::ROOT, rcv_index, rcv, b, record);
+    }
+
+    /// [`ShotContext::transfer`] of the part at `path` under the part the record started from.
+    #[allow(clippy::too_many_arguments)]
+    pub fn transfer_at<S: Shot>(
+        &self,
+        shot: &S,
+        part: &S::Part,
+        path: SourcePath,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+        b: usize,
+        record: &mut ShotRecord<S::Part>,
+    ) {
         if self.cancel.load(Ordering::Relaxed) {
             return;
         }
@@ -86,20 +108,20 @@ impl ShotContext<'_> {
         let receiver = ReceiverNode::new(rroot, rcv, b);
         let received = self.receive(&source, &receiver);
         match oracle::evaluate(self, &source, &receiver, &received, weight) {
-            Verdict::Accept => self.accept(part, rcv, b, &received, record),
+            Verdict::Accept => self.accept(path, rroot, rcv, b, &received, record),
             Verdict::Capped => {
                 self.capped.fetch_add(1, Ordering::Relaxed);
-                self.accept(part, rcv, b, &received, record);
+                self.accept(path, rroot, rcv, b, &received, record);
             }
             Verdict::SplitSource => {
-                for child in shot.children(part) {
-                    self.transfer(shot, &child, rcv_index, rcv, b, record);
+                for (c, child) in shot.children(part).iter().enumerate() {
+                    self.transfer_at(shot, child, path.child(c), rcv_index, rcv, b, record);
                 }
             }
             Verdict::SplitReceiver => {
                 let first = self.first_child(rcv, b, rroot);
                 for c in 0..4 {
-                    self.transfer(shot, part, rcv_index, rcv, first + c, record);
+                    self.transfer_at(shot, part, path, rcv_index, rcv, first + c, record);
                 }
             }
         }
@@ -129,10 +151,12 @@ impl ShotContext<'_> {
         received
     }
 
-    /// Gathers an accepted link at node `b` (and records it for the node-sum check).
-    fn accept<P: Clone>(
+    /// Gathers an accepted link at node `b` (and records it for the node-sum check: its values
+    /// go to the node's sums, the link keeps its source's path, its deviation and coefficients).
+    fn accept<P>(
         &self,
-        part: &P,
+        path: SourcePath,
+        rroot: &ElementRoot,
         rcv: &mut Hierarchy,
         b: usize,
         received: &Received,
@@ -142,12 +166,9 @@ impl ShotContext<'_> {
         self.links.fetch_add(1, Ordering::Relaxed);
         gather(rcv, b, &received.dh[..nr]);
         if self.node_sums {
-            record.add(
-                b,
-                &received.e[..received.points],
-                &received.dh,
-                part.clone(),
-            );
+            let e = &received.e[..received.points];
+            let deviation = self.node_sum_deviation(rroot)(e, &received.dh);
+            record.add(b, e, &received.dh, nr, deviation, path);
         }
     }
 

@@ -14,7 +14,7 @@ use super::hierarchy::Hierarchy;
 use super::lights;
 use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
-use super::shot_record::ShotRecord;
+use super::shot_record::{LinkBytes, ShotRecord};
 use super::source::LightShot;
 use super::visibility::Visibility;
 use super::{mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason, MIN_EDGE_REL};
@@ -22,6 +22,7 @@ use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 /// Counters shared by every shot.
@@ -31,6 +32,7 @@ struct Counters {
     capped: AtomicU64,
     touching: AtomicU64,
     node_sum_splits: AtomicU64,
+    link_records: Mutex<LinkBytes>,
 }
 
 /// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
@@ -76,6 +78,7 @@ pub fn solve(
         capped: &counters.capped,
         touching: &counters.touching,
         node_sum_splits: &counters.node_sum_splits,
+        link_records: &counters.link_records,
         cancel,
         spheres: &spheres,
     };
@@ -167,8 +170,28 @@ pub fn solve(
         refinement_capped: counters.capped.load(Ordering::Relaxed),
         touching_fallbacks: counters.touching.load(Ordering::Relaxed),
         node_sum_splits: counters.node_sum_splits.load(Ordering::Relaxed),
+        bytes_per_element: bytes_per(
+            hierarchies.iter().map(Hierarchy::bytes).sum(),
+            last.elements,
+        ),
+        bytes_per_link: {
+            let peak = *counters
+                .link_records
+                .lock()
+                .unwrap_or_else(|e| e.into_inner());
+            bytes_per(peak.bytes, peak.links)
+        },
     };
     Solution::new(roots, hierarchies, params, stats, convergence, bases)
+}
+
+/// `bytes / count`, 0 when nothing was counted.
+fn bytes_per(bytes: u64, count: u64) -> f64 {
+    if count == 0 {
+        0.0
+    } else {
+        bytes as f64 / count as f64
+    }
 }
 
 /// Emitted power: exitance over each face (an extended root's domain emits only where its face is).

@@ -1,5 +1,6 @@
 //! Sample scenes the service tests submit: lit boxes (converging or never converging), a single
-//! emitting triangle as editable glTF JSON, and a cluttered room whose shots take long.
+//! emitting triangle as editable glTF JSON, and a cluttered room whose shots take long; and the
+//! slab under a black box (14 triangles) of `tests/analytic.rs` and `tests/memory.rs`.
 
 use glam::DVec3;
 use serde_json::{json, Value};
@@ -98,4 +99,39 @@ pub fn cluttered_scene(k: u32) -> Vec<u8> {
         }
     }
     b.to_glb()
+}
+
+/// A 1 m slab (rho 1) with a black box (0.84 x 0.84 x 0.3 m) standing on its middle, under a
+/// 4 x 4 m emitter (L_e = 1) 1 m above it, facing down: 14 triangles. Only the slab's border ring
+/// is lit, by a large source split many times for its visibility (many links per node).
+pub struct SlabUnderABox {
+    pub glb: Vec<u8>,
+    /// The slab's material.
+    pub slab: u32,
+    /// The box's corners.
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+pub fn slab_under_a_box() -> SlabUnderABox {
+    let mut b = SceneBuilder::new();
+    let slab = b.material([1.0; 3], [0.0; 3], false);
+    let black = b.material([0.0; 3], [0.0; 3], false);
+    let lamp = b.material([0.0; 3], [1.0; 3], false);
+    let (x, y) = (DVec3::X, DVec3::Y);
+    b.quad(slab, DVec3::new(-0.5, -0.5, 0.0), x, y, 1);
+    let (lo, hi) = (DVec3::new(-0.42, -0.42, 0.0), DVec3::new(0.42, 0.42, 0.3));
+    let (bx, by, bz) = (x * 0.84, y * 0.84, DVec3::Z * 0.3);
+    b.quad(black, lo, bz, by, 1); // normal -x
+    b.quad(black, lo + bx, by, bz, 1); // +x
+    b.quad(black, lo, bx, bz, 1); // -y
+    b.quad(black, lo + by, bz, bx, 1); // +y
+    b.quad(black, lo + bz, bx, by, 1); // top, +z
+    b.quad(lamp, DVec3::new(-2.0, -2.0, 1.0), y * 4.0, x * 4.0, 1); // facing -z
+    SlabUnderABox {
+        glb: b.to_glb(),
+        slab,
+        lo,
+        hi,
+    }
 }
