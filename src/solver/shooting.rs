@@ -11,6 +11,7 @@ use super::cover::{self, face_integral};
 use super::element_source::{ElementShot, SourceElement};
 use super::hierarchy::Hierarchy;
 use super::lights;
+use super::progress::{with_reports, Reporter, ShotKind};
 use super::refine::ShotContext;
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::ShotRecord;
@@ -32,8 +33,8 @@ struct Counters {
     node_sum_splits: AtomicU64,
 }
 
-/// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
-/// next check (between and inside shots).
+/// Runs the shooting loop. `observe` is called after every shot, and from within a long shot
+/// (`Progress`); `cancel` stops the solve at the next check (between and inside shots).
 pub fn solve(
     roots: Vec<ElementRoot>,
     lights: &[PunctualLight],
@@ -77,7 +78,8 @@ pub fn solve(
         cancel,
     };
     let mut convergence = Vec::new();
-    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies);
+    let mut reporter = Reporter::new(start, observe, &counters.links, &params, roots.len());
+    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies, &mut reporter);
     if !lights.is_empty() {
         // What the lights delivered: direct irradiance integrated over each face.
         for (h, r) in hierarchies.iter().zip(&roots) {
@@ -107,15 +109,9 @@ pub fn solve(
     let mut stop = StopReason::Converged;
     loop {
         let ratio = unshot_ratio(&unshot, emitted_total);
-        let progress = Progress {
-            iterations,
-            unshot_ratio: ratio,
-            elements: hierarchies.iter().map(|h| h.leaf_count() as u64).sum(),
-            links: counters.links.load(Ordering::Relaxed),
-            seconds: start.elapsed().as_secs_f64(),
-        };
+        let elements = hierarchies.iter().map(leaf_count).sum();
+        let progress = reporter.after_shot(iterations, ratio, elements);
         convergence.push(progress);
-        observe(&progress);
         if let Some(reason) = must_stop(&progress, &params, cancel) {
             stop = reason;
             break;
@@ -125,6 +121,14 @@ pub fn solve(
         else {
             break;
         };
+        let kind = if direct {
+            ShotKind::Direct {
+                left: direct_iter.len(),
+            }
+        } else {
+            ShotKind::Indirect
+        };
+        reporter.shot_started(iterations, kind);
         shoot(
             &ctx,
             shooter,
@@ -132,6 +136,7 @@ pub fn solve(
             facing_eps,
             &mut hierarchies,
             &mut unshot,
+            &mut reporter,
         );
         clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
         unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
@@ -178,12 +183,21 @@ fn unshot_ratio(unshot: &[f64], emitted_total: f64) -> f64 {
     }
 }
 
-/// Each punctual light shoots onto every receiver; returns the shots taken.
+/// Leaf elements of a hierarchy, from its node count alone: every split turns one leaf into four.
+fn leaf_count(h: &Hierarchy) -> u64 {
+    let leaves = (h.nodes.len() as u64 * 3).div_ceil(4);
+    debug_assert_eq!(leaves, h.leaf_count() as u64);
+    leaves
+}
+
+/// Each punctual light shoots onto every receiver; returns the shots taken. A long shot reports
+/// from within to `reporter`.
 fn shoot_lights(
     ctx: &ShotContext,
     lights: &[PunctualLight],
     far: f64,
     hierarchies: &mut [Hierarchy],
+    reporter: &mut Reporter,
 ) -> u64 {
     let mut shots = 0;
     for light in lights {
@@ -195,16 +209,28 @@ fn shoot_lights(
             far,
             visibility: ctx.visibility,
         };
-        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
-            if h.nodes.is_empty() {
-                return;
-            }
-            let root = &ctx.roots[ri];
-            ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
-            if h.touched {
-                h.push_pull(ctx.bases.of(root.shape), root.rho, true);
-            }
-        });
+        reporter.shot_started(
+            shots,
+            ShotKind::Light {
+                left: lights.len() - 1 - shots as usize,
+            },
+        );
+        let receivers = hierarchies.iter().filter(|h| !h.nodes.is_empty()).count() as u64;
+        let hs = &mut *hierarchies;
+        let work = |done: &AtomicU64| {
+            hs.par_iter_mut().enumerate().for_each(|(ri, h)| {
+                if h.nodes.is_empty() {
+                    return;
+                }
+                let root = &ctx.roots[ri];
+                ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
+                if h.touched {
+                    h.push_pull(ctx.bases.of(root.shape), root.rho, true);
+                }
+                done.fetch_add(1, Ordering::Relaxed);
+            })
+        };
+        with_reports(work, &mut |done| reporter.within_shot(done, receivers));
         shots += 1;
     }
     shots
@@ -277,7 +303,7 @@ fn pick_shooter(
 }
 
 /// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
-/// power is updated.
+/// power is updated. A long shot reports from within to `reporter`.
 fn shoot(
     ctx: &ShotContext,
     shooter: usize,
@@ -285,6 +311,7 @@ fn shoot(
     facing_eps: f64,
     hierarchies: &mut [Hierarchy],
     unshot: &mut [f64],
+    reporter: &mut Reporter,
 ) {
     let roots = ctx.roots;
     let sroot = &roots[shooter];
@@ -319,27 +346,36 @@ fn shoot(
         source_face_means: source_face_means.as_deref(),
         min_edge: ctx.min_edge,
     };
-    hierarchies
-        .par_iter_mut()
-        .zip(unshot.par_iter_mut())
+    let visits = |ri: usize, h: &Hierarchy| {
+        ri != shooter && !h.nodes.is_empty() && faces_each_other(sroot, &roots[ri], facing_eps)
+    };
+    let receivers = hierarchies
+        .par_iter()
         .enumerate()
-        .for_each(|(ri, (h, power))| {
-            if ri == shooter
-                || h.nodes.is_empty()
-                || !faces_each_other(sroot, &roots[ri], facing_eps)
-            {
-                return;
-            }
-            let mut record = ShotRecord::default();
-            ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
-            if ctx.node_sums {
-                ctx.refine_by_node_sums(&shot, record, ri, h);
-            }
-            if h.touched {
-                h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
-                *power = unshot_power(h, &roots[ri]);
-            }
-        });
+        .filter(|&(ri, h)| visits(ri, h))
+        .count() as u64;
+    let work = |done: &AtomicU64| {
+        hierarchies
+            .par_iter_mut()
+            .zip(unshot.par_iter_mut())
+            .enumerate()
+            .for_each(|(ri, (h, power))| {
+                if !visits(ri, h) {
+                    return;
+                }
+                let mut record = ShotRecord::default();
+                ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+                if ctx.node_sums {
+                    ctx.refine_by_node_sums(&shot, record, ri, h);
+                }
+                if h.touched {
+                    h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                    *power = unshot_power(h, &roots[ri]);
+                }
+                done.fetch_add(1, Ordering::Relaxed);
+            })
+    };
+    with_reports(work, &mut |done| reporter.within_shot(done, receivers));
     hierarchies[shooter] = source_h;
 }
 

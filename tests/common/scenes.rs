@@ -99,3 +99,9 @@ pub fn cluttered_scene(k: u32) -> Vec<u8> {
     }
     b.to_glb()
 }
+
+/// A cluttered room whose first shot (the lamp wall, at the tolerance of
+/// `tests/progress.rs`'s `long_first_shot_params`: `order=1&tolerance=3e-8`) lasts seconds.
+pub fn long_first_shot() -> Vec<u8> {
+    cluttered_scene(8)
+}
