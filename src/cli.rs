@@ -210,7 +210,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> Exi
     };
     init_logging(&cli.log_format);
     match cli.command {
-        Command::Solve(a) => solve(a),
+        Command::Solve(a) => solve(a, &cli.log_format),
         Command::Faces(a) => faces(a),
         Command::Serve(a) => serve(a),
     }
@@ -221,7 +221,7 @@ fn load(path: &std::path::Path, max_triangles: usize) -> Result<crate::scene::Sc
         .map_err(|e: SceneError| bad_input(format!("{}: {e}", path.display())))
 }
 
-fn solve(a: SolveArgs) -> ExitCode {
+fn solve(a: SolveArgs, log_format: &str) -> ExitCode {
     let params = a.solver.job_params();
     if let Err(e) = params.validate() {
         return bad_input(e);
@@ -246,7 +246,8 @@ fn solve(a: SolveArgs) -> ExitCode {
     for w in &scene.warnings {
         tracing::warn!("{w}");
     }
-    let bar = if std::io::stderr().is_terminal() {
+    // The bar on a terminal with text logs; otherwise `progress` log events.
+    let bar = if std::io::stderr().is_terminal() && log_format == "text" {
         let bar = indicatif::ProgressBar::new(1000);
         bar.set_style(
             indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg}")
@@ -257,19 +258,17 @@ fn solve(a: SolveArgs) -> ExitCode {
         None
     };
     let target = params.target_unshot;
-    let mut observe = |p: &crate::solver::Progress| {
-        if let Some(bar) = &bar {
-            // Position on a log scale from 1 down to the target.
-            let done = if p.unshot_ratio > 0.0 {
-                (p.unshot_ratio.ln() / target.ln()).clamp(0.0, 1.0)
-            } else {
-                1.0
-            };
-            bar.set_position((done * 1000.0) as u64);
-            bar.set_message(format!(
-                "shot {} unshot {:.2e} elements {} links {}",
-                p.iterations, p.unshot_ratio, p.elements, p.links
-            ));
+    let mut last_log: Option<std::time::Instant> = None;
+    let mut observe = |p: &crate::solver::Progress| match &bar {
+        Some(bar) => {
+            bar.set_position((bar_fraction(p, target) * 1000.0) as u64);
+            bar.set_message(progress_message(p));
+        }
+        None => {
+            if last_log.is_none_or(|t| t.elapsed() >= PROGRESS_LOG_INTERVAL) {
+                last_log = Some(std::time::Instant::now());
+                log_progress(p);
+            }
         }
     };
     let cancel = AtomicBool::new(false);
@@ -305,6 +304,68 @@ fn solve(a: SolveArgs) -> ExitCode {
         }
         Err(JobError::Scene(e)) => bad_input(format!("{}: {e}", a.scene.display())),
         Err(e) => internal(e),
+    }
+}
+
+/// Least time between two `progress` log events of `solve` (docs/contract.md, "Command line").
+const PROGRESS_LOG_INTERVAL: std::time::Duration = std::time::Duration::from_secs(1);
+
+/// The `progress` log event of `solve` (when there is no bar): the fields a benchmark parses
+/// (`tests::the_progress_event_has_its_fields`); `eta_seconds` is absent until known.
+fn log_progress(p: &crate::solver::Progress) {
+    tracing::info!(
+        seconds = p.seconds,
+        shots = p.iterations,
+        unshot_ratio = p.unshot_ratio,
+        shot_receivers_done = p.shot_receivers_done,
+        shot_receivers = p.shot_receivers,
+        eta_seconds = p.eta_seconds,
+        "progress"
+    );
+}
+
+/// Where the bar stands: the time spent of the time spent plus the ETA when there is one (it
+/// moves within a shot), else the unshot ratio on a log scale from 1 down to the target.
+fn bar_fraction(p: &crate::solver::Progress, target: f64) -> f64 {
+    match p.eta_seconds {
+        Some(eta) if eta.is_finite() && p.seconds + eta > 0.0 => p.seconds / (p.seconds + eta),
+        _ if p.unshot_ratio > 0.0 => (p.unshot_ratio.ln() / target.ln()).clamp(0.0, 1.0),
+        _ => 1.0,
+    }
+}
+
+/// The bar's message: the shot in progress with its receivers done (or the shots done between
+/// two shots), the unshot ratio, the counts and the ETA.
+fn progress_message(p: &crate::solver::Progress) -> String {
+    let shot = if p.shot_receivers > 0 {
+        format!(
+            "shot {} ({}/{} receivers)",
+            p.iterations + 1,
+            p.shot_receivers_done,
+            p.shot_receivers
+        )
+    } else {
+        format!("shot {}", p.iterations)
+    };
+    let eta = match p.eta_seconds {
+        Some(e) if e.is_finite() => format!("ETA {}", format_seconds(e)),
+        _ => "ETA ?".to_string(),
+    };
+    format!(
+        "{shot} unshot {:.2e} elements {} links {} {eta}",
+        p.unshot_ratio, p.elements, p.links
+    )
+}
+
+/// `1h02m`, `3m05s`, `42s`.
+fn format_seconds(s: f64) -> String {
+    let s = s.max(0.0).round() as u64;
+    if s >= 3600 {
+        format!("{}h{:02}m", s / 3600, (s % 3600) / 60)
+    } else if s >= 60 {
+        format!("{}m{:02}s", s / 60, s % 60)
+    } else {
+        format!("{s}s")
     }
 }
 
@@ -464,6 +525,40 @@ mod tests {
         assert!(e.contains("HOST:PORT"), "{e}");
         let parsed = Cli::try_parse_from(["wavrad", "serve", "--addr", "localhost:0"]);
         assert!(parsed.is_ok(), "{parsed:?}");
+    }
+
+    fn progress(shot_receivers_done: u64, shot_receivers: u64) -> crate::solver::Progress {
+        crate::solver::Progress {
+            iterations: 3,
+            unshot_ratio: 0.25,
+            elements: 40,
+            links: 100,
+            seconds: 30.0,
+            shot_receivers_done,
+            shot_receivers,
+            eta_seconds: Some(90.0),
+        }
+    }
+
+    /// The bar names the shot in progress with its receivers done, and the ETA; it stands at the
+    /// time spent of the whole.
+    #[test]
+    fn the_bar_shows_the_shot_in_progress_and_the_eta() {
+        let within = progress_message(&progress(12, 48));
+        assert!(within.starts_with("shot 4 (12/48 receivers)"), "{within}");
+        assert!(within.ends_with("ETA 1m30s"), "{within}");
+        let between = progress_message(&progress(0, 0));
+        assert!(between.starts_with("shot 3 unshot"), "{between}");
+        assert_eq!(bar_fraction(&progress(0, 0), 1e-3), 0.25);
+        let unknown = crate::solver::Progress {
+            eta_seconds: None,
+            ..progress(0, 0)
+        };
+        assert!(progress_message(&unknown).ends_with("ETA ?"));
+        let by_ratio = bar_fraction(&unknown, 1e-3);
+        assert!((by_ratio - 0.25f64.ln() / 1e-3f64.ln()).abs() < 1e-12);
+        assert_eq!(format_seconds(3725.0), "1h02m");
+        assert_eq!(format_seconds(42.4), "42s");
     }
 
     #[test]

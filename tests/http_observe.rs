@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 use wavrad::service::ServiceConfig;
 
 mod common;
-use common::scenes::{cluttered_scene, never_converging_scene, small_scene};
+use common::scenes::{cluttered_scene, long_first_shot, never_converging_scene, small_scene};
 use common::service::{
     client, data_dir, delete_job, error_of, expect_error, get, get_job, job_id, post_probes,
     probe_ok, start, submit_ok, wait_for,
@@ -110,6 +110,83 @@ async fn a_running_job_reports_an_eta() {
     let done = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(300)).await;
     println!("finished at {}", done["progress"]);
     assert!(done["progress"]["eta_seconds"].is_null() || done["progress"]["eta_seconds"] == 0.0);
+}
+
+/// A solve whose first shot lasts seconds: its progress object moves within the shot (receivers
+/// done increasing while no shot has finished), with an ETA, both when polled and on the event
+/// stream, whose in-shot events come at most about twice a second; then the job is cancelled.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_progress_object_moves_within_a_long_shot() {
+    let base = start(ServiceConfig::new(data_dir("http-progress-in-shot"))).await;
+    let client = client();
+    // `tests/progress.rs` solves the same scene with the same parameters.
+    let job = submit_ok(&client, &base, "order=1&tolerance=3e-8", long_first_shot()).await;
+    let id = job_id(&job);
+    let mut stream = get(&client, format!("{base}/v1/jobs/{id}/events")).await;
+    assert_eq!(stream.status(), StatusCode::OK);
+    let start = Instant::now();
+    let mut text = String::new();
+    let mut within: Vec<Value> = Vec::new();
+    let mut polled = None;
+    while within.len() < 3
+        || within.last().unwrap()["shot_receivers_done"] == within[0]["shot_receivers_done"]
+    {
+        assert!(start.elapsed() < Duration::from_secs(300), "{within:?}");
+        let chunk = tokio::time::timeout(Duration::from_secs(60), stream.chunk())
+            .await
+            .expect("the stream moves within the shot")
+            .unwrap()
+            .expect("the stream stays open while the job runs");
+        text.push_str(&String::from_utf8_lossy(&chunk));
+        while let Some(end) = text.find("\n\n") {
+            let block: String = text.drain(..end + 2).collect();
+            let data: String = block
+                .lines()
+                .filter_map(|l| l.strip_prefix("data:"))
+                .map(str::trim_start)
+                .collect();
+            if !block.contains("event: progress") && !block.contains("event:progress") {
+                continue;
+            }
+            let p: Value = serde_json::from_str(&data).unwrap();
+            if p["shot_receivers"].as_u64().unwrap() > 0 {
+                assert_eq!(p["iterations"], 0, "within the first shot: {p}");
+                within.push(p);
+            }
+        }
+        if polled.is_none() && !within.is_empty() {
+            let j = get_job(&client, &base, &id).await;
+            if j["progress"]["shot_receivers"].as_u64().unwrap() > 0 {
+                polled = Some(j["progress"].clone());
+            }
+        }
+    }
+    println!("in-shot events: {within:?}");
+    let receivers = &within[0]["shot_receivers"];
+    let done: Vec<u64> = within
+        .iter()
+        .map(|p| p["shot_receivers_done"].as_u64().unwrap())
+        .collect();
+    assert!(done.windows(2).all(|w| w[0] <= w[1]), "{done:?}");
+    for p in &within {
+        assert_eq!(&p["shot_receivers"], receivers);
+        assert!(p["eta_seconds"].as_f64().is_some_and(|e| e > 0.0), "{p}");
+    }
+    let seconds: Vec<f64> = within
+        .iter()
+        .map(|p| p["seconds"].as_f64().unwrap())
+        .collect();
+    assert!(
+        seconds.windows(2).all(|w| w[1] - w[0] >= 0.25),
+        "at most about two events a second within a shot: {seconds:?}"
+    );
+    let polled = polled.expect("polling shows the shot in progress too");
+    assert_eq!(polled["iterations"], 0);
+    assert!(polled["shot_receivers_done"].as_u64().unwrap() <= receivers.as_u64().unwrap());
+    let response = delete_job(&client, &base, &id).await;
+    assert!(response.status().is_success(), "{}", response.status());
+    let end = wait_for(&client, &base, &id, "cancelled", Duration::from_secs(120)).await;
+    assert!(end["progress"]["eta_seconds"].is_null() || end["progress"]["eta_seconds"] == 0.0);
 }
 
 /// Reads server-sent events until the stream closes: (event, data) pairs.

@@ -44,19 +44,30 @@ impl JobState {
     }
 }
 
-/// The progress object of docs/contract.md.
+/// The progress object of docs/contract.md. Updated after every shot and, during a shot that
+/// lasts longer than the solver's `REPORT_INTERVAL`, from within it (`shot_receivers_done`
+/// moving while `iterations` stays: `tests/http_observe.rs`,
+/// `the_progress_object_moves_within_a_long_shot`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct ProgressView {
-    /// Unshot power / emitted power (1 before the first shot).
+    /// Unshot power / emitted power after the last finished shot (1 before the first shot).
     pub unshot_ratio: f64,
+    /// Shots finished.
     pub iterations: u64,
     pub elements: u64,
     pub links: u64,
     /// Seconds of solving so far.
     pub seconds: f64,
-    /// Estimated seconds until `target_unshot` is reached (capped by the time budget), from a
-    /// log-linear fit of the recent unshot ratio ([`estimate_eta`]); null until it can be fitted
-    /// and once the job has ended.
+    /// Receiver roots the shot in progress has finished (0 between shots). Absent from the
+    /// `state.json` of jobs recorded before it existed: read as 0.
+    #[serde(default)]
+    pub shot_receivers_done: u64,
+    /// Receiver roots the shot in progress visits (those facing the shooter; 0 between shots).
+    #[serde(default)]
+    pub shot_receivers: u64,
+    /// Estimated seconds until the solve ends (the target reached, or the time budget spent):
+    /// the solver's estimate (`Progress::eta_seconds`); null until it can be made and once the
+    /// job has ended.
     pub eta_seconds: Option<f64>,
 }
 
@@ -68,6 +79,8 @@ impl Default for ProgressView {
             elements: 0,
             links: 0,
             seconds: 0.0,
+            shot_receivers_done: 0,
+            shot_receivers: 0,
             eta_seconds: None,
         }
     }
@@ -81,7 +94,9 @@ impl From<&Progress> for ProgressView {
             elements: p.elements,
             links: p.links,
             seconds: p.seconds,
-            eta_seconds: None,
+            shot_receivers_done: p.shot_receivers_done,
+            shot_receivers: p.shot_receivers,
+            eta_seconds: p.eta_seconds.filter(|e| e.is_finite()),
         }
     }
 }
@@ -152,41 +167,6 @@ pub struct JobRecord {
     pub idempotency_key: Option<String>,
 }
 
-/// Seconds until the unshot ratio reaches `target`, from a least-squares line through recent
-/// (seconds, ln ratio) points: progressive shooting decays the unshot power roughly
-/// exponentially. None until the fit has three points and a falling slope. Capped by the time
-/// budget when there is one.
-pub fn estimate_eta(points: &[(f64, f64)], target: f64, max_seconds: Option<f64>) -> Option<f64> {
-    let &(t_now, ln_now) = points.last()?;
-    let remaining_budget = max_seconds.map(|m| (m - t_now).max(0.0));
-    let target_ln = target.ln();
-    if ln_now <= target_ln {
-        return Some(0.0);
-    }
-    if points.len() < 3 {
-        return remaining_budget;
-    }
-    let n = points.len() as f64;
-    let mean_t = points.iter().map(|p| p.0).sum::<f64>() / n;
-    let mean_y = points.iter().map(|p| p.1).sum::<f64>() / n;
-    let (mut stt, mut sty) = (0.0, 0.0);
-    for &(t, y) in points {
-        stt += (t - mean_t) * (t - mean_t);
-        sty += (t - mean_t) * (y - mean_y);
-    }
-    let eta = if stt > 0.0 && sty < 0.0 {
-        let slope = sty / stt;
-        let eta = (target_ln - ln_now) / slope;
-        eta.is_finite().then_some(eta.max(0.0))
-    } else {
-        None
-    };
-    match (eta, remaining_budget) {
-        (Some(e), Some(b)) => Some(e.min(b)),
-        (e, b) => e.or(b),
-    }
-}
-
 /// One job.
 #[derive(Debug)]
 pub struct Job {
@@ -203,14 +183,9 @@ pub struct Job {
     /// and the job goes back to the queue.
     cancel: AtomicBool,
     status: watch::Sender<JobStatus>,
-    /// Recent (seconds, ln unshot ratio) points of the running solve, for `eta_seconds`.
-    history: Mutex<VecDeque<(f64, f64)>>,
     /// Serialises writes of this job's state.json (the last writer writes the latest state).
     persist: Mutex<()>,
 }
-
-/// Points of the unshot-ratio history the ETA is fitted on.
-const ETA_POINTS: usize = 16;
 
 impl Job {
     pub fn new(id: JobId, created: SystemTime, seq: u64, params: JobParams) -> Job {
@@ -235,7 +210,6 @@ impl Job {
             stop: AtomicBool::new(false),
             cancel: AtomicBool::new(false),
             status: watch::Sender::new(status),
-            history: Mutex::new(VecDeque::with_capacity(ETA_POINTS)),
             persist: Mutex::new(()),
         }
     }
@@ -278,26 +252,8 @@ impl Job {
         self.status.send_if_modified(change)
     }
 
-    /// Records the progress of a shot, with `eta_seconds` fitted on the recent decay of the unshot
-    /// ratio.
-    pub fn set_progress(&self, mut progress: ProgressView) {
-        {
-            let mut history = lock(&self.history);
-            if progress.iterations == 0 {
-                history.clear();
-            }
-            if progress.unshot_ratio > 0.0 && progress.unshot_ratio.is_finite() {
-                if history.len() == ETA_POINTS {
-                    history.pop_front();
-                }
-                history.push_back((progress.seconds, progress.unshot_ratio.ln()));
-            }
-            progress.eta_seconds = estimate_eta(
-                history.make_contiguous(),
-                self.params.target_unshot,
-                self.params.max_seconds,
-            );
-        }
+    /// Records the solver's progress (after a shot, or from within one), its ETA included.
+    pub fn set_progress(&self, progress: ProgressView) {
         self.status.send_modify(|s| s.progress = progress);
     }
 
@@ -613,21 +569,6 @@ mod tests {
     }
 
     #[test]
-    fn eta_follows_an_exponential_decay() {
-        // ratio = exp(-t): from ln r = -2 at t = 2 to ln(1e-3) = -6.9 takes 4.9 s more.
-        let points: Vec<(f64, f64)> = (0..=4)
-            .map(|i| (i as f64 * 0.5, -(i as f64) * 0.5))
-            .collect();
-        let eta = estimate_eta(&points, 1e-3, None).unwrap();
-        assert!((eta - (1e3f64.ln() - 2.0)).abs() < 1e-9, "{eta}");
-        assert_eq!(estimate_eta(&points, 1e-3, Some(3.0)), Some(1.0));
-        assert_eq!(estimate_eta(&points[..2], 1e-3, None), None);
-        let flat = [(0.0, -1.0), (1.0, -1.0), (2.0, -1.0)];
-        assert_eq!(estimate_eta(&flat, 1e-3, None), None);
-        assert_eq!(estimate_eta(&[(1.0, -8.0)], 1e-3, None), Some(0.0));
-    }
-
-    #[test]
     fn job_document_has_contract_fields() {
         let board = JobBoard::new(1);
         let j = job(&board, 1_709_210_096_789);
@@ -635,6 +576,8 @@ mod tests {
         assert_eq!(v["state"], "queued");
         assert_eq!(v["created"], "2024-02-29T12:34:56.789Z");
         assert!(v["progress"]["eta_seconds"].is_null());
+        assert_eq!(v["progress"]["shot_receivers_done"], 0);
+        assert_eq!(v["progress"]["shot_receivers"], 0);
         assert_eq!(v["progress"]["unshot_ratio"], 1.0);
         assert!(v.get("error").is_none());
         assert_eq!(v["links"]["self"], format!("/v1/jobs/{}", j.id));

@@ -259,8 +259,8 @@ impl AppState {
         let store = FileStore::open(&config.data_dir)?;
         let jobs = JobBoard::new(config.max_queued);
         recovery::recover(&store, &jobs)?;
-        let pool = Arc::new(runner::solver_pool()?);
         let workers = config.workers;
+        let pool = Arc::new(runner::solver_pool(workers)?);
         let max_in_flight = config.max_in_flight;
         let max_uploads = config.max_concurrent_uploads;
         let state = AppState {

@@ -70,7 +70,8 @@ enum EventPhase {
 }
 
 /// `GET /v1/jobs/{id}/events`: server-sent events, `progress` (the progress object) at every
-/// change of the job's state, then `done` (the job) when it ends. Reads the same watch channel as
+/// change of the job's state (after every shot, and every `solver::REPORT_INTERVAL` within a long
+/// shot: at most about two a second then), then `done` (the job) when it ends. Reads the same watch channel as
 /// polling. A client that connects after the end gets one `progress` and `done`. The stream also
 /// ends when the server shuts down.
 pub async fn job_events(

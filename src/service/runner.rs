@@ -21,9 +21,17 @@ use tokio::sync::oneshot;
 #[cfg(target_os = "linux")]
 const SOLVER_NICE: libc::c_int = 5;
 
-/// Builds the solver pool: every core, named threads, lower priority.
-pub(crate) fn solver_pool() -> io::Result<rayon::ThreadPool> {
+/// Builds the solver pool: a thread per core (`RAYON_NUM_THREADS` when set), plus one per runner
+/// (`workers`): a solve's own thread waits while the pool runs each shot, reporting its progress
+/// (`solver::progress`), so the cores stay busy. Named threads, lower priority.
+pub(crate) fn solver_pool(workers: usize) -> io::Result<rayon::ThreadPool> {
+    let cores = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     rayon::ThreadPoolBuilder::new()
+        .num_threads(cores + workers)
         .thread_name(|i| format!("wavrad-solve-{i}"))
         .start_handler(|_| lower_thread_priority())
         .panic_handler(|payload| {
@@ -329,6 +337,8 @@ fn final_progress(result: &serde_json::Value) -> Option<ProgressView> {
         elements: stats.get("elements")?.as_u64()?,
         links: stats.get("links")?.as_u64()?,
         seconds: stats.get("seconds")?.as_f64()?,
+        shot_receivers_done: 0,
+        shot_receivers: 0,
         eta_seconds: None,
     })
 }
@@ -339,7 +349,7 @@ mod tests {
 
     #[test]
     fn a_panicking_solve_fails_its_job_and_not_the_pool() {
-        let pool = solver_pool().unwrap();
+        let pool = solver_pool(1).unwrap();
         let finished = pool.install(|| guarded(|| panic!("boom in a shot")));
         let Finished::Error(body) = finished else {
             panic!("a panic is an error")

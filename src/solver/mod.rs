@@ -22,6 +22,7 @@ pub(crate) mod lights;
 pub(crate) mod node_reflectance;
 mod node_sums;
 mod oracle;
+mod progress;
 pub(crate) mod quadrature;
 mod refine;
 mod rules;
@@ -111,15 +112,34 @@ impl StopReason {
     }
 }
 
-/// Progress after a shot (feeds the CLI bar, convergence.csv and the HTTP progress object).
+/// Progress of the solve (feeds the CLI bar, convergence.csv and the HTTP progress object).
+///
+/// Reported after every shot (those rows, and only those, are the solution's `convergence`) and,
+/// during a shot that lasts longer than [`REPORT_INTERVAL`], every `REPORT_INTERVAL` from within
+/// it (`tests/progress.rs`, `progress_moves_within_a_long_shot`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Progress {
+    /// Shots finished (lights' shots included).
     pub iterations: u64,
+    /// Unshot power / emitted power after the last finished shot (1 before the first).
     pub unshot_ratio: f64,
+    /// Leaf elements after the last finished shot.
     pub elements: u64,
+    /// Links gathered so far (counted during shots too).
     pub links: u64,
+    /// Seconds of solving so far.
     pub seconds: f64,
+    /// Receiver roots the shot in progress has finished, of `shot_receivers`.
+    pub shot_receivers_done: u64,
+    /// Receiver roots the shot in progress visits (those facing the shooter); 0 between shots.
+    pub shot_receivers: u64,
+    /// Estimated seconds until the solve ends: the target reached, or the time budget spent
+    /// (`progress::EtaEstimator`); `None` until it can be estimated.
+    pub eta_seconds: Option<f64>,
 }
+
+/// How often a long shot reports its progress from within.
+pub const REPORT_INTERVAL: std::time::Duration = std::time::Duration::from_millis(500);
 
 /// Counters of rare numerical fallbacks and work done.
 #[derive(Debug, Clone, Default)]

@@ -12,6 +12,7 @@ use super::element_source::{ElementShot, SourceElement};
 use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
 use super::lights;
+use super::progress::{with_reports, Reporter, ShotKind};
 use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
@@ -35,8 +36,8 @@ struct Counters {
     link_records: Mutex<LinkBytes>,
 }
 
-/// Runs the shooting loop. `observe` is called after every shot; `cancel` stops the solve at the
-/// next check (between and inside shots).
+/// Runs the shooting loop. `observe` is called after every shot, and from within a long shot
+/// (`Progress`); `cancel` stops the solve at the next check (between and inside shots).
 pub fn solve(
     roots: Vec<ElementRoot>,
     lights: &[PunctualLight],
@@ -83,7 +84,8 @@ pub fn solve(
         spheres: &spheres,
     };
     let mut convergence = Vec::new();
-    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies);
+    let mut reporter = Reporter::new(start, observe, &counters.links, &params, roots.len());
+    let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies, &mut reporter);
     if !lights.is_empty() {
         // What the lights delivered: direct irradiance integrated over each face.
         for (h, r) in hierarchies.iter().zip(&roots) {
@@ -121,15 +123,9 @@ pub fn solve(
     let mut stop = StopReason::Converged;
     loop {
         let ratio = unshot_ratio(&unshot, ratio_base);
-        let progress = Progress {
-            iterations,
-            unshot_ratio: ratio,
-            elements: hierarchies.iter().map(|h| h.leaf_count() as u64).sum(),
-            links: counters.links.load(Ordering::Relaxed),
-            seconds: start.elapsed().as_secs_f64(),
-        };
+        let elements = hierarchies.iter().map(leaf_count).sum();
+        let progress = reporter.after_shot(iterations, ratio, elements);
         convergence.push(progress);
-        observe(&progress);
         if let Some(reason) = must_stop(&progress, &params, cancel) {
             stop = reason;
             break;
@@ -139,6 +135,14 @@ pub fn solve(
         else {
             break;
         };
+        let kind = if direct {
+            ShotKind::Direct {
+                left: direct_iter.len(),
+            }
+        } else {
+            ShotKind::Indirect
+        };
+        reporter.shot_started(iterations, kind);
         shoot(
             &ctx,
             shooter,
@@ -146,6 +150,7 @@ pub fn solve(
             facing_eps,
             &mut hierarchies,
             &mut unshot,
+            &mut reporter,
         );
         clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
         unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
@@ -231,12 +236,21 @@ fn unshot_ratio(unshot: &[f64], base: f64) -> f64 {
     }
 }
 
-/// Each punctual light shoots onto every receiver; returns the shots taken.
+/// Leaf elements of a hierarchy, from its node count alone: every split turns one leaf into four.
+fn leaf_count(h: &Hierarchy) -> u64 {
+    let leaves = (h.nodes.len() as u64 * 3).div_ceil(4);
+    debug_assert_eq!(leaves, h.leaf_count() as u64);
+    leaves
+}
+
+/// Each punctual light shoots onto every receiver; returns the shots taken. A long shot reports
+/// from within to `reporter`.
 fn shoot_lights(
     ctx: &ShotContext,
     lights: &[PunctualLight],
     far: f64,
     hierarchies: &mut [Hierarchy],
+    reporter: &mut Reporter,
 ) -> u64 {
     let mut shots = 0;
     for light in lights {
@@ -248,16 +262,28 @@ fn shoot_lights(
             far,
             visibility: ctx.visibility,
         };
-        hierarchies.par_iter_mut().enumerate().for_each(|(ri, h)| {
-            if h.nodes.is_empty() {
-                return;
-            }
-            let root = &ctx.roots[ri];
-            ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
-            if h.touched {
-                h.push_pull(ctx.bases.of(root.shape), root.rho, true);
-            }
-        });
+        reporter.shot_started(
+            shots,
+            ShotKind::Light {
+                left: lights.len() - 1 - shots as usize,
+            },
+        );
+        let receivers = hierarchies.iter().filter(|h| !h.nodes.is_empty()).count() as u64;
+        let hs = &mut *hierarchies;
+        let work = |done: &AtomicU64| {
+            hs.par_iter_mut().enumerate().for_each(|(ri, h)| {
+                if h.nodes.is_empty() {
+                    return;
+                }
+                let root = &ctx.roots[ri];
+                ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
+                if h.touched {
+                    h.push_pull(ctx.bases.of(root.shape), root.rho, true);
+                }
+                done.fetch_add(1, Ordering::Relaxed);
+            })
+        };
+        with_reports(work, &mut |done| reporter.within_shot(done, receivers));
         shots += 1;
     }
     shots
@@ -330,7 +356,7 @@ fn pick_shooter(
 }
 
 /// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
-/// power is updated.
+/// power is updated. A long shot reports from within to `reporter`.
 fn shoot(
     ctx: &ShotContext,
     shooter: usize,
@@ -338,6 +364,7 @@ fn shoot(
     facing_eps: f64,
     hierarchies: &mut [Hierarchy],
     unshot: &mut [f64],
+    reporter: &mut Reporter,
 ) {
     let roots = ctx.roots;
     let sroot = &roots[shooter];
@@ -377,39 +404,48 @@ fn shoot(
     let power_bound = shot
         .source(&root_element, [1.0; 3])
         .map_or(0.0, |s| s.power_bound());
-    hierarchies
-        .par_iter_mut()
-        .zip(unshot.par_iter_mut())
+    let visits = |ri: usize, h: &Hierarchy| {
+        ri != shooter && !h.nodes.is_empty() && faces_each_other(sroot, &roots[ri], facing_eps)
+    };
+    let receivers = hierarchies
+        .par_iter()
         .enumerate()
-        .for_each(|(ri, (h, power))| {
-            if ri == shooter
-                || h.nodes.is_empty()
-                || !faces_each_other(sroot, &roots[ri], facing_eps)
-            {
-                return;
-            }
-            let is_far = power_bound
-                * far_field::transfer_fraction_bound(&ctx.spheres[shooter], &ctx.spheres[ri])
-                <= ctx.threshold;
-            if is_far {
-                let e = shot
-                    .source(&root_element, [1.0; 3])
-                    .and_then(|s| far_field::far_irradiance(&s, &roots[ri]));
-                if let Some(e) = e {
-                    ctx.accept_far(h, e);
+        .filter(|&(ri, h)| visits(ri, h))
+        .count() as u64;
+    let work = |done: &AtomicU64| {
+        hierarchies
+            .par_iter_mut()
+            .zip(unshot.par_iter_mut())
+            .enumerate()
+            .for_each(|(ri, (h, power))| {
+                if !visits(ri, h) {
+                    return;
                 }
-            } else {
-                let mut record = ShotRecord::default();
-                ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
-                if ctx.node_sums {
-                    ctx.refine_by_node_sums(&shot, record, ri, h);
+                let is_far = power_bound
+                    * far_field::transfer_fraction_bound(&ctx.spheres[shooter], &ctx.spheres[ri])
+                    <= ctx.threshold;
+                if is_far {
+                    let e = shot
+                        .source(&root_element, [1.0; 3])
+                        .and_then(|s| far_field::far_irradiance(&s, &roots[ri]));
+                    if let Some(e) = e {
+                        ctx.accept_far(h, e);
+                    }
+                } else {
+                    let mut record = ShotRecord::default();
+                    ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+                    if ctx.node_sums {
+                        ctx.refine_by_node_sums(&shot, record, ri, h);
+                    }
                 }
-            }
-            if h.touched {
-                h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
-                *power = unshot_power(h, &roots[ri]);
-            }
-        });
+                if h.touched {
+                    h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                    *power = unshot_power(h, &roots[ri]);
+                }
+                done.fetch_add(1, Ordering::Relaxed);
+            })
+    };
+    with_reports(work, &mut |done| reporter.within_shot(done, receivers));
     hierarchies[shooter] = source_h;
 }
 

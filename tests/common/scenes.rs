@@ -135,3 +135,9 @@ pub fn slab_under_a_box() -> SlabUnderABox {
         hi,
     }
 }
+
+/// A cluttered room whose first shot (the lamp wall, at the tolerance of
+/// `tests/progress.rs`'s `long_first_shot_params`: `order=1&tolerance=3e-8`) lasts seconds.
+pub fn long_first_shot() -> Vec<u8> {
+    cluttered_scene(8)
+}
