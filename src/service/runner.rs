@@ -176,6 +176,9 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
                 s.error = Some(body);
             }
         }
+        // An ended job has no time left (a solve cancelled within a shot keeps that shot's
+        // progress, whose estimate no longer holds).
+        s.progress.eta_seconds = None;
         true
     });
     tracing::info!(state = job.state().as_str(), "job finished");
