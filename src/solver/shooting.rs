@@ -218,7 +218,7 @@ fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
 /// The direct light (from emitters and punctual lights) the surfaces received, in W: the
 /// stopping rule's base once the direct shots are done. In a closed scene it is the emitted power;
 /// under a sky most of the emitted power leaves the scene, and unshot / emitted would understate
-/// what is left to bounce inside (docs/design.md section 5.1; `tests/solver.rs`
+/// what is left to bounce inside (docs/design.md section 5.1; `tests/stopping_rule.rs`
 /// `the_stopping_rule_counts_the_light_that_stays_in_an_open_scene`).
 fn received_direct(hierarchies: &[Hierarchy], roots: &[ElementRoot]) -> f64 {
     hierarchies
