@@ -5,10 +5,12 @@
 //! - `scenes`: the sample scenes those tests submit;
 //! - `gltf`: editing GLBs, palette images, the glowing quad of the texture tests;
 //! - `faces`: merging with the validator's check;
-//! - `cli`: running the `wavrad` binary.
+//! - `cli`: running the `wavrad` binary;
+//! - `clients`: the real clients (Node.js tools, Chromium) and the skip rule when they are missing.
 #![allow(dead_code)]
 
 pub mod cli;
+pub mod clients;
 pub mod faces;
 pub mod gltf;
 pub mod scenes;

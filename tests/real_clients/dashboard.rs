@@ -1,0 +1,1 @@
+//! The dashboard in headless Chromium (npm `playwright-core`, Debian's `chromium`).
