@@ -137,6 +137,10 @@ pub struct JobLinks {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobView {
     pub id: String,
+    /// The scene's name: the `name` parameter of the submission, else the file name of a
+    /// multipart upload's `scene` part; absent when neither was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub state: JobState,
     /// RFC 3339 UTC.
     pub created: String,
@@ -155,6 +159,9 @@ pub struct JobView {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobRecord {
     pub id: String,
+    /// The scene's name (absent from jobs recorded before it existed, and from unnamed jobs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub state: JobState,
     pub created: String,
     pub created_unix_ms: u64,
@@ -177,6 +184,8 @@ pub struct Job {
     pub params: JobParams,
     /// The `Idempotency-Key` of the POST that created it.
     pub idempotency_key: Option<String>,
+    /// The scene's name, as shown in the job document (`JobView::name`).
+    pub name: Option<String>,
     /// The flag the solver checks (between shots and inside them): stop now.
     stop: AtomicBool,
     /// Set with `stop` when a client cancelled; `stop` alone means the server is shutting down
@@ -207,11 +216,18 @@ impl Job {
             seq,
             params,
             idempotency_key,
+            name: None,
             stop: AtomicBool::new(false),
             cancel: AtomicBool::new(false),
             status: watch::Sender::new(status),
             persist: Mutex::new(()),
         }
+    }
+
+    /// The job with its scene's name (already validated: `routes::submit`).
+    pub fn with_name(mut self, name: Option<String>) -> Job {
+        self.name = name;
+        self
     }
 
     pub fn status(&self) -> JobStatus {
@@ -262,6 +278,7 @@ impl Job {
         let base = format!("/v1/jobs/{}", self.id);
         JobView {
             id: self.id.to_string(),
+            name: self.name.clone(),
             state: status.state,
             created: rfc3339(self.created),
             params: self.params.clone(),
@@ -284,6 +301,7 @@ impl Job {
     fn record_of(&self, status: &JobStatus) -> JobRecord {
         JobRecord {
             id: self.id.to_string(),
+            name: self.name.clone(),
             state: status.state,
             created: rfc3339(self.created),
             created_unix_ms: unix_millis(self.created),
