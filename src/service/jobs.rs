@@ -534,6 +534,33 @@ mod tests {
     }
 
     #[test]
+    fn a_name_goes_into_the_record_and_the_view_and_old_records_have_none() {
+        let board = JobBoard::new(4);
+        let named = Job::new(
+            JobId::for_tests("00000000000000aa"),
+            from_unix_millis(0xaa),
+            board.next_seq(),
+            JobParams::default(),
+        )
+        .with_name(Some("room.gltf".into()));
+        let record = serde_json::to_value(named.record()).unwrap();
+        assert_eq!(record["name"], "room.gltf");
+        assert_eq!(named.view().name.as_deref(), Some("room.gltf"));
+        let unnamed = job(&board, 0xab);
+        let record = serde_json::to_value(unnamed.record()).unwrap();
+        assert!(record.get("name").is_none(), "{record}");
+        assert!(serde_json::to_value(unnamed.view())
+            .unwrap()
+            .get("name")
+            .is_none());
+        // A state.json written before names existed reads back without one.
+        let mut old = record;
+        old.as_object_mut().unwrap().remove("name");
+        let back: JobRecord = serde_json::from_value(old).unwrap();
+        assert_eq!(back.name, None);
+    }
+
+    #[test]
     fn queue_is_bounded_and_listing_is_newest_first() {
         let board = JobBoard::new(2);
         let a = job(&board, 1);
