@@ -2,8 +2,8 @@
 //! the texel density (or the minimal `MINIMAL_RECT` square for a surface whose texels nobody
 //! needs resolved), each inside a *cell*: the rectangle, its gutter of `gutter` texels on every
 //! side, rounded up to the atlas *block*. Cells are packed into pages by `etagere`'s shelf
-//! allocator, tallest first on horizontal shelves or widest first on vertical ones, whichever
-//! takes fewer page texels.
+//! allocator, tallest first on horizontal shelves or widest first on vertical ones, from two first
+//! page sizes, whichever takes fewer page texels.
 //!
 //! The mip rule (why the default gutter is 4 and the block 8): a mip chain of `n` levels (0 to
 //! `n - 1`) built by 2 x 2 box filtering averages, at level `k`, aligned blocks of `2^k x 2^k`
@@ -334,27 +334,35 @@ impl Atlas {
 type Packing = (Vec<(u32, u32, u32)>, Vec<Page>);
 
 /// Places cells on pages with horizontal shelves (tallest first) and with vertical ones (widest
-/// first), and keeps the packing with fewer page texels (horizontal on a tie).
+/// first), each from a first page 10 % larger than the area grown by quarters and from one just the
+/// area grown by sixteenths, and keeps the packing with the fewest page texels (the first of the
+/// candidates on a tie).
 fn pack_cells(cells: &[(u32, u32)], settings: &AtlasSettings) -> Packing {
     let texels =
         |p: &Packing| -> u64 { p.1.iter().map(|p| p.width as u64 * p.height as u64).sum() };
-    let horizontal = pack_cells_on_shelves(cells, settings, false);
-    let vertical = pack_cells_on_shelves(cells, settings, true);
-    if texels(&vertical) < texels(&horizontal) {
-        vertical
-    } else {
-        horizontal
+    let mut best: Option<(u64, Packing)> = None;
+    for (slack, growth) in [(1.1, 4), (1.0, 16)] {
+        for vertical in [false, true] {
+            let packing = pack_cells_on_shelves(cells, settings, vertical, slack, growth);
+            let t = texels(&packing);
+            if best.as_ref().is_none_or(|(b, _)| t < *b) {
+                best = Some((t, packing));
+            }
+        }
     }
+    best.map(|(_, p)| p).unwrap_or_default()
 }
 
 /// Places cells (sides multiples of the block, at most the page limit) on pages. Tallest cells
 /// first (ties: wider first, then index; widths and heights swapped with `vertical` shelves). Each
-/// page is first tried as a square about 10 % larger than the area left, grown (by 2 with `pow2`,
-/// else by a quarter) until everything fits or it reaches the limit, then cut to what it holds.
+/// page is first tried as a square of `slack` times the area left, grown (by 2 with `pow2`, else
+/// by `1 / growth`) until everything fits or it reaches the limit, then cut to what it holds.
 fn pack_cells_on_shelves(
     cells: &[(u32, u32)],
     settings: &AtlasSettings,
     vertical: bool,
+    slack: f64,
+    growth: u32,
 ) -> Packing {
     let (block, limit) = (settings.block(), settings.page_limit());
     let fit = |side: u32| -> u32 {
@@ -384,7 +392,7 @@ fn pack_cells_on_shelves(
             .map(|&i| cells[i].0.max(cells[i].1))
             .max()
             .unwrap_or(block);
-        let mut side = fit(((area * 1.1).sqrt().ceil() as u32).max(largest));
+        let mut side = fit(((area * slack).sqrt().ceil() as u32).max(largest));
         let (placed, rest) = loop {
             let (placed, rest) = fill_page(side, &remaining, cells, block, vertical);
             if rest.is_empty() || side >= limit {
@@ -393,7 +401,7 @@ fn pack_cells_on_shelves(
             side = if settings.pow2 {
                 fit(side * 2)
             } else {
-                fit(side + side / 4)
+                fit(side + (side / growth).max(block))
             };
         };
         let page = pages.len() as u32;
