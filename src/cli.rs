@@ -89,6 +89,15 @@ pub struct SolverArgs {
     /// Write EXR channels as 32-bit float instead of half.
     #[arg(long)]
     pub exr_float: bool,
+    /// Texels of gutter around each atlas rectangle (4 keeps 4 mip levels apart), 0 to 32.
+    #[arg(long, default_value_t = crate::output::atlas::DEFAULT_GUTTER)]
+    pub gutter: u32,
+    /// Largest atlas page side in texels: a multiple of 4 in [256, 16384]; more pages when full.
+    #[arg(long, default_value_t = crate::output::atlas::DEFAULT_MAX_PAGE_SIZE)]
+    pub atlas_max_size: u32,
+    /// Atlas page sides are powers of two.
+    #[arg(long)]
+    pub atlas_pow2: bool,
 }
 
 impl SolverArgs {
@@ -111,6 +120,9 @@ impl SolverArgs {
             },
             indirect_only: self.indirect_only,
             exr_float: self.exr_float,
+            gutter: self.gutter,
+            atlas_max_size: self.atlas_max_size,
+            atlas_pow2: self.atlas_pow2,
         }
     }
 }

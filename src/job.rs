@@ -8,7 +8,7 @@
 use crate::fsutil::write_atomic;
 use crate::output::probes::{evaluate_probes, ProbePoint, ProbeValue};
 use crate::output::solution_file::{self, SolutionFileError};
-use crate::output::{write_outputs, OutputOptions};
+use crate::output::{write_outputs, AtlasSettings, OutputOptions};
 use crate::pipeline::{bake, prepare};
 use crate::scene::{Scene, SceneError};
 use crate::solver::{Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE};
@@ -47,6 +47,12 @@ pub struct JobParams {
     pub quantity: QuantityParam,
     pub indirect_only: bool,
     pub exr_float: bool,
+    /// Texels of gutter around each atlas rectangle (`output::atlas`: 4 keeps 4 mip levels apart).
+    pub gutter: u32,
+    /// Largest atlas page side, texels.
+    pub atlas_max_size: u32,
+    /// Atlas page sides are powers of two.
+    pub atlas_pow2: bool,
 }
 
 impl Default for JobParams {
@@ -61,6 +67,9 @@ impl Default for JobParams {
             quantity: QuantityParam::Radiance,
             indirect_only: false,
             exr_float: false,
+            gutter: crate::output::atlas::DEFAULT_GUTTER,
+            atlas_max_size: crate::output::atlas::DEFAULT_MAX_PAGE_SIZE,
+            atlas_pow2: false,
         }
     }
 }
@@ -101,7 +110,15 @@ impl JobParams {
                 ));
             }
         }
-        Ok(())
+        self.atlas_settings().validate()
+    }
+
+    pub fn atlas_settings(&self) -> AtlasSettings {
+        AtlasSettings {
+            gutter: self.gutter,
+            max_page_size: self.atlas_max_size,
+            pow2: self.atlas_pow2,
+        }
     }
 
     pub fn domain_mode(&self) -> crate::domain::DomainMode {
@@ -252,6 +269,7 @@ pub fn run_job_keeping_solution(
     std::fs::create_dir_all(out_dir)?;
     let options = OutputOptions {
         texels_per_meter: params.texels_per_meter,
+        atlas: params.atlas_settings(),
         exr_float: params.exr_float,
         domain: params.domain_mode(),
         params: serde_json::to_value(params).unwrap_or(serde_json::Value::Null),

@@ -59,6 +59,11 @@ async fn requests_outside_the_contract_get_error_json() {
         "target_unshot=0",
         "quantity=lux",
         "max_seconds=-1",
+        "gutter=33",
+        "gutter=-1",
+        "atlas_max_size=1002",
+        "atlas_max_size=128",
+        "atlas_pow2=maybe",
     ] {
         let response = submit(&client, &base, query, "model/gltf-binary", tiny.clone()).await;
         expect_error(response, StatusCode::BAD_REQUEST, "bad_parameters").await;
@@ -66,6 +71,20 @@ async fn requests_outside_the_contract_get_error_json() {
     let response = submit(&client, &base, "order=7", "model/gltf-binary", tiny.clone()).await;
     let error = error_of(response, StatusCode::BAD_REQUEST).await;
     assert!(error["message"].as_str().unwrap().contains("order"));
+    let response = submit(
+        &client,
+        &base,
+        "atlas_max_size=1002",
+        "model/gltf-binary",
+        tiny.clone(),
+    )
+    .await;
+    let error = error_of(response, StatusCode::BAD_REQUEST).await;
+    let message = error["message"].as_str().unwrap();
+    assert!(
+        message.contains("atlas_max_size") && message.contains("multiple of 4"),
+        "{message}"
+    );
 
     let big = small_scene(0.5);
     assert!(big.len() > 1024);

@@ -5,6 +5,9 @@
 //! and `t` in `[j/h, (j+1)/h]` (rows from the top of the image); its value is the solution at the
 //! texel centre (clamped into the element, so gutters and texels outside a triangle repeat the
 //! nearest face value and bilinear filtering never bleeds black); alpha is the texel's coverage.
+//! Every texel of a rectangle's cell (gutter and block rounding included, `atlas.rs`) is
+//! rendered that way, so mip levels the gutter keeps apart mix only the face's own values
+//! (`tests/atlas.rs`).
 
 pub(crate) mod atlas;
 pub mod probes;
@@ -16,7 +19,10 @@ use crate::fsutil::{write_atomic, write_atomic_with};
 use crate::pipeline::Prepared;
 use crate::scene::Scene;
 use crate::solver::{Progress, Solution};
-use atlas::{default_density, Atlas, AtlasRect, GUTTER};
+pub use atlas::{
+    block_for_gutter, default_density, mip_levels_for_gutter, Atlas, AtlasRect, AtlasSettings,
+    Cell, Page, RectRequest,
+};
 use glam::DVec2;
 use rayon::prelude::*;
 use serde_json::{json, Value};
@@ -28,6 +34,8 @@ use std::path::Path;
 pub struct OutputOptions {
     /// Lightmap density; `None` picks one from the scene's size ([`atlas::default_density`]).
     pub texels_per_meter: Option<f64>,
+    /// Gutter, page size limit and power-of-two pages.
+    pub atlas: AtlasSettings,
     /// 32-bit float EXR pages instead of half floats.
     pub exr_float: bool,
     /// The mode the roots were built with (result.json counts extended faces that fell back).
@@ -117,20 +125,24 @@ fn value_on_root(solution: &Solution, i: usize, x: glam::DVec3) -> [f64; 3] {
     solution.value_at(i, st)
 }
 
-/// RGBA texels of one surface's block: its rectangle plus the gutter, row-major from the top.
-fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Vec<[f32; 4]> {
-    let g = GUTTER as f64;
-    let (bw, bh) = (
-        (rect.w + 2 * GUTTER) as usize,
-        (rect.h + 2 * GUTTER) as usize,
-    );
+/// RGBA texels of one surface's cell (its rectangle, gutter and block rounding), row-major from
+/// the top.
+fn render_surface(
+    solution: &Solution,
+    surface: &Surface,
+    rect: AtlasRect,
+    cell: Cell,
+) -> Vec<[f32; 4]> {
+    // The rectangle's corner inside the cell.
+    let (gx, gy) = ((rect.x - cell.x) as f64, (rect.y - cell.y) as f64);
+    let (bw, bh) = (cell.w as usize, cell.h as usize);
     let (w, h) = (rect.w as f64, rect.h as f64);
     let mut coverage = vec![0.0f64; bw * bh];
     let mut value: Vec<Option<[f64; 3]>> = vec![None; bw * bh];
     let frame = &surface.frame;
     // Texel-space point (x, y) of the block <-> frame coordinates (s, t).
-    let to_texel = |st: DVec2| DVec2::new(st.x * w + g, st.y * h + g);
-    let to_world = |p: DVec2| frame.point(DVec2::new((p.x - g) / w, (p.y - g) / h));
+    let to_texel = |st: DVec2| DVec2::new(st.x * w + gx, st.y * h + gy);
+    let to_world = |p: DVec2| frame.point(DVec2::new((p.x - gx) / w, (p.y - gy) / h));
     let mut corners = Vec::with_capacity(4);
     for i in surface.roots.clone() {
         let root = &solution.roots[i];
@@ -161,8 +173,8 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
                     // An extended root: the face inside the texel, not the domain.
                     Some(mask) => {
                         let texel = StBox::new(
-                            DVec2::new((fx - g) / w, (fy - g) / h),
-                            DVec2::new((fx + 1.0 - g) / w, (fy + 1.0 - g) / h),
+                            DVec2::new((fx - gx) / w, (fy - gy) / h),
+                            DVec2::new((fx + 1.0 - gx) / w, (fy + 1.0 - gy) / h),
                         );
                         mask.coverage(texel).fraction(&texel)
                     }
@@ -180,7 +192,8 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
             }
         }
     }
-    // Texels whose centre lies on no root (gutter, outside the face): the nearest root's value.
+    // Texels whose centre lies on no root (gutter, rounding, outside the face): the nearest
+    // root's value.
     let mut out = Vec::with_capacity(bw * bh);
     for k in 0..bw * bh {
         let v = value[k].unwrap_or_else(|| {
@@ -214,15 +227,16 @@ pub fn render_pages(
     let blocks: Vec<Vec<[f32; 4]>> = surfaces
         .par_iter()
         .zip(atlas.rects.par_iter())
-        .map(|(surface, rect)| render_surface(solution, surface, *rect))
+        .enumerate()
+        .map(|(i, (surface, rect))| render_surface(solution, surface, *rect, atlas.cell(i)))
         .collect();
-    for (block, r) in blocks.into_iter().zip(&atlas.rects) {
+    for (i, (block, r)) in blocks.into_iter().zip(&atlas.rects).enumerate() {
         let page = &mut pages[r.page as usize];
         let width = atlas.pages[r.page as usize].width;
-        let bw = r.w + 2 * GUTTER;
+        let c = atlas.cell(i);
         for (k, texel) in block.into_iter().enumerate() {
-            let (bx, by) = (k as u32 % bw, k as u32 / bw);
-            let (x, y) = (r.x - GUTTER + bx, r.y - GUTTER + by);
+            let (bx, by) = (k as u32 % c.w, k as u32 / c.w);
+            let (x, y) = (c.x + bx, c.y + by);
             page[(y * width + x) as usize] = texel;
         }
     }
@@ -346,6 +360,41 @@ fn surface_mean(solution: &Solution, surface: &Surface) -> [f64; 3] {
     }
 }
 
+/// Whether a surface's texels need no resolution: its material reflects nothing (rho = 0), so
+/// its radiance is its emission, uniform without an emissive texture (and an engine multiplies
+/// its irradiance by a zero albedo). Such a surface gets the minimal rectangle (`atlas.rs`).
+pub fn needs_no_resolution(scene: &Scene, faces: &FaceSet, surface: &Surface) -> bool {
+    let Some(face) = faces.faces.get(surface.face.0 as usize) else {
+        return false;
+    };
+    let Some(m) = scene.materials.get(face.material as usize) else {
+        return false;
+    };
+    m.rho == [0.0; 3] && (m.emissive_texture.is_none() || !m.is_emissive())
+}
+
+/// The atlas of a solve's surfaces (one rectangle per entry of `surfaces`, `Prepared::surfaces`,
+/// in order): the one `write_outputs` renders, for any other output that maps into it.
+pub fn plan_atlas(
+    scene: &Scene,
+    faces: &FaceSet,
+    surfaces: &[Surface],
+    options: &OutputOptions,
+) -> Atlas {
+    let requests: Vec<RectRequest> = surfaces
+        .iter()
+        .map(|s| RectRequest {
+            width_m: s.frame.u.length(),
+            height_m: s.frame.v.length(),
+            minimal: needs_no_resolution(scene, faces, s),
+        })
+        .collect();
+    let density = options
+        .texels_per_meter
+        .unwrap_or_else(|| default_density(&requests));
+    Atlas::pack(&requests, density, &options.atlas)
+}
+
 /// Writes every output of a solve to `dir` and returns the result.json document.
 pub fn write_outputs(
     dir: &Path,
@@ -354,11 +403,7 @@ pub fn write_outputs(
     solution: &Solution,
     options: &OutputOptions,
 ) -> std::io::Result<Value> {
-    let frames: Vec<Frame> = prepared.surfaces.iter().map(|s| s.frame).collect();
-    let density = options
-        .texels_per_meter
-        .unwrap_or_else(|| default_density(&frames));
-    let atlas = Atlas::pack(&frames, density);
+    let atlas = plan_atlas(scene, &prepared.faces, &prepared.surfaces, options);
     let pages = render_pages(solution, &prepared.surfaces, &atlas);
     let mut page_json = Vec::new();
     for (n, (texels, page)) in pages.iter().zip(&atlas.pages).enumerate() {
@@ -455,7 +500,12 @@ pub fn write_outputs(
             "texels_per_meter": atlas.texels_per_meter,
         },
         "faces": faces,
-        "atlas": {"pages": page_json},
+        "atlas": {
+            "pages": page_json, "gutter": atlas.settings.gutter, "block": atlas.settings.block(),
+            "mip_levels": mip_levels_for_gutter(atlas.settings.gutter),
+            "efficiency": atlas.efficiency(),
+            "minimal_rects": prepared.surfaces.iter().filter(|s| needs_no_resolution(scene, &prepared.faces, s)).count(),
+        },
     });
     let text = serde_json::to_vec_pretty(&result).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("result.json"), &text)?;
