@@ -278,6 +278,11 @@ fn check_points(path: &Path, name: &str, quantity: QuantityParam) {
         .filter(|(s, e)| (0..3).all(|c| (s[c] - e[c]).abs() <= (0.02 * s[c]).max(1e-3 * mean)))
         .count();
     println!("{name}: {good}/200 points within 2 % or 1e-3 of the mean ({mean:.4})");
+    for (k, (s, e)) in solved.iter().zip(&expected).enumerate() {
+        if !(0..3).all(|c| (s[c] - e[c]).abs() <= (0.02 * s[c]).max(1e-3 * mean)) {
+            println!("  point {k}: solved {s:?} exr {e:?} at {:?}", points[k].p);
+        }
+    }
     assert!(good >= 190, "{name}: only {good}/200 points match");
     let _ = std::fs::remove_dir_all(&out);
 }
