@@ -434,3 +434,45 @@ fn coplanar_faces_of_different_albedo_show_no_seam() {
     assert!(worst < 0.01);
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// A double-sided quad lit from above is written as two single-sided copies: the front as in
+/// the input, the back with reversed winding and its own TEXCOORD_1, into the back side's
+/// rectangle (dark: no light reaches it), the front's reading the irradiance E = 3.
+#[test]
+fn a_double_sided_face_is_written_as_two_single_sided_copies() {
+    let mut b = SceneBuilder::new();
+    let both = b.material([0.5; 3], [0.0; 3], true);
+    b.quad(both, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+    b.light(PunctualLight {
+        name: "sun".into(),
+        kind: LightKind::Directional {
+            direction: DVec3::NEG_Z,
+        },
+        intensity: [3.0; 3],
+    });
+    let scene = load_scene(&b.to_glb(), &ExternalFiles::Refuse, 1000).unwrap();
+    let out = scratch("double");
+    solve(&scene, &JobParams::default(), &out);
+    let baked = read_baked(&out.join("scene.glb"));
+    assert_eq!(baked.triangles.len(), 4, "two triangles a side");
+    let (mut front, mut back) = (0, 0);
+    for t in &baked.triangles {
+        let n = (t.world[1] - t.world[0]).cross(t.world[2] - t.world[0]);
+        let centre = (t.uv1[0] + t.uv1[1] + t.uv1[2]) / 3.0;
+        let (png, w, h) = &baked.pngs[t.page];
+        let (x, y) = (
+            (centre.x * *w as f64) as usize,
+            (centre.y * *h as f64) as usize,
+        );
+        let byte = png[3 * (y * *w as usize + x) + 1];
+        if n.z > 0.0 {
+            front += 1;
+            assert!(byte > 200, "the lit front reads {byte}");
+        } else {
+            back += 1;
+            assert!(byte < 5, "the dark back reads {byte}");
+        }
+    }
+    assert_eq!((front, back), (2, 2));
+    let _ = std::fs::remove_dir_all(&out);
+}
