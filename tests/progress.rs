@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 use wavrad::domain::DomainMode;
 use wavrad::pipeline::bake;
 use wavrad::scene::{load_scene, ExternalFiles};
-use wavrad::solver::{Progress, SolverParams, REPORT_INTERVAL};
+use wavrad::solver::{Progress, SolverParams, StopReason, REPORT_INTERVAL};
 
 mod common;
 use common::cli::wavrad;
@@ -89,6 +89,55 @@ fn progress_moves_within_a_long_shot() {
     assert!(
         solution.convergence.iter().all(|p| p.shot_receivers == 0),
         "convergence rows are the reports between shots"
+    );
+}
+
+/// A time budget that ends within a long shot stops the solve there (receivers not yet reached
+/// are left out), not at the end of the shot. The budget is set to a time the first run saw the
+/// first shot running at; the second run must then end with no shot finished.
+#[test]
+fn the_time_budget_stops_within_a_long_shot() {
+    let scene = load_scene(&long_first_shot(), &ExternalFiles::Refuse, 1_000_000).unwrap();
+    let (params, _) = long_first_shot_params();
+    let cancel = AtomicBool::new(false);
+    let mut inside = None;
+    bake(
+        &scene,
+        DomainMode::Extended,
+        params.clone(),
+        &cancel,
+        &mut |p| {
+            if p.shot_receivers > 0 && p.iterations == 0 && inside.is_none() {
+                inside = Some(p.seconds);
+                cancel.store(true, Ordering::Relaxed);
+            }
+        },
+    )
+    .unwrap();
+    let inside = inside.expect("a report from within the first shot");
+    let budget = SolverParams {
+        max_seconds: Some(inside),
+        ..params
+    };
+    let cancel = AtomicBool::new(false);
+    let mut last = None;
+    let (_, solution) = bake(&scene, DomainMode::Extended, budget, &cancel, &mut |p| {
+        last = Some(*p);
+    })
+    .unwrap();
+    let stats = &solution.stats;
+    println!(
+        "budget {inside:.2} s: stopped after {:.2} s, {} shot(s), last report {last:?}",
+        stats.seconds, stats.iterations
+    );
+    assert_eq!(stats.stop_reason, Some(StopReason::TimeBudget));
+    assert_eq!(stats.iterations, 0, "the first shot was not finished");
+    assert!(
+        solution
+            .convergence
+            .last()
+            .is_some_and(|p| p.unshot_ratio >= 0.999),
+        "the shooter keeps its unshot power when its shot is cut short"
     );
 }
 

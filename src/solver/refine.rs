@@ -62,11 +62,20 @@ pub(super) struct ShotContext<'a> {
     /// The largest link record of any receiver in any shot (`ShotRecord::peak`).
     pub link_records: &'a Mutex<LinkBytes>,
     pub cancel: &'a AtomicBool,
+    /// When the time budget ends (`SolverParams::max_seconds`): a shot still running then takes
+    /// no further receiver (`shooting::shoot`).
+    pub deadline: Option<std::time::Instant>,
     /// Each root's bounding sphere (`far_field.rs`).
     pub spheres: &'a [Sphere],
 }
 
 impl ShotContext<'_> {
+    /// Has the time budget ended?
+    pub fn past_deadline(&self) -> bool {
+        self.deadline
+            .is_some_and(|d| std::time::Instant::now() >= d)
+    }
+
     /// Transfers `part` of `shot` to receiver node `b` of `rcv` (root `rcv_index`), refining as
     /// the oracle asks.
     pub fn transfer<S: Shot>(

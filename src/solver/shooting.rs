@@ -81,6 +81,9 @@ pub fn solve(
         node_sum_splits: &counters.node_sum_splits,
         link_records: &counters.link_records,
         cancel,
+        deadline: params
+            .max_seconds
+            .and_then(|m| start.checked_add(std::time::Duration::try_from_secs_f64(m).ok()?)),
         spheres: &spheres,
     };
     let mut convergence = Vec::new();
@@ -143,7 +146,7 @@ pub fn solve(
             ShotKind::Indirect
         };
         reporter.shot_started(iterations, kind);
-        shoot(
+        let completed = shoot(
             &ctx,
             shooter,
             direct,
@@ -152,6 +155,12 @@ pub fn solve(
             &mut unshot,
             &mut reporter,
         );
+        if !completed {
+            // The budget ended within the shot: the receivers it reached keep their light, the
+            // shooter keeps its unshot power (the ratio stays an upper bound), and the check at
+            // the top of the loop stops the solve.
+            continue;
+        }
         clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
         unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
         iterations += 1;
@@ -356,7 +365,9 @@ fn pick_shooter(
 }
 
 /// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
-/// power is updated. A long shot reports from within to `reporter`.
+/// power is updated. A long shot reports from within to `reporter`. Returns false when the time
+/// budget ended within the shot and receivers were left out (`tests/solver.rs`
+/// `the_time_budget_stops_within_a_long_shot`).
 fn shoot(
     ctx: &ShotContext,
     shooter: usize,
@@ -365,7 +376,7 @@ fn shoot(
     hierarchies: &mut [Hierarchy],
     unshot: &mut [f64],
     reporter: &mut Reporter,
-) {
+) -> bool {
     let roots = ctx.roots;
     let sroot = &roots[shooter];
     let n = ctx.bases.of(sroot.shape).len();
@@ -412,6 +423,7 @@ fn shoot(
         .enumerate()
         .filter(|&(ri, h)| visits(ri, h))
         .count() as u64;
+    let interrupted = AtomicBool::new(false);
     let work = |done: &AtomicU64| {
         hierarchies
             .par_iter_mut()
@@ -419,6 +431,10 @@ fn shoot(
             .enumerate()
             .for_each(|(ri, (h, power))| {
                 if !visits(ri, h) {
+                    return;
+                }
+                if ctx.past_deadline() {
+                    interrupted.store(true, Ordering::Relaxed);
                     return;
                 }
                 let is_far = power_bound
@@ -447,6 +463,7 @@ fn shoot(
     };
     with_reports(work, &mut |done| reporter.within_shot(done, receivers));
     hierarchies[shooter] = source_h;
+    !interrupted.load(Ordering::Relaxed)
 }
 
 /// After a shot, what the shooter shot is no longer unshot: on a direct shot exactly the emission
