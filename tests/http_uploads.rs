@@ -274,6 +274,69 @@ async fn a_multipart_upload_resolves_external_files_by_name() {
     assert!(error["message"].as_str().unwrap().contains("'scene'"));
 }
 
+/// A job carries its scene's name: the `name` parameter, else the file name of a multipart
+/// upload's `scene` part (without its folder), else none; a bad `name` is a 400 that says why.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_carries_the_name_of_its_scene() {
+    let base = start(ServiceConfig::new(data_dir("http-names"))).await;
+    let client = client();
+    let glb = small_scene(0.5);
+
+    let named = submit_ok(
+        &client,
+        &base,
+        "order=1&name=Caf%C3%A9%20room.glb",
+        glb.clone(),
+    )
+    .await;
+    assert_eq!(named["name"], "Café room.glb");
+    let unnamed = submit_ok(&client, &base, "order=1", glb.clone()).await;
+    assert!(unnamed.get("name").is_none(), "{unnamed}");
+
+    let (content_type, body) =
+        multipart(&[("scene", "uploads/box.glb", "model/gltf-binary", &glb)]);
+    let response = submit(&client, &base, "order=1", &content_type, body).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let from_file: Value = response.json().await.unwrap();
+    assert_eq!(from_file["name"], "box.glb");
+    let (content_type, body) =
+        multipart(&[("scene", "uploads/box.glb", "model/gltf-binary", &glb)]);
+    let response = submit(&client, &base, "name=mine", &content_type, body).await;
+    assert_eq!(response.status(), StatusCode::ACCEPTED);
+    let overridden: Value = response.json().await.unwrap();
+    assert_eq!(
+        overridden["name"], "mine",
+        "the parameter wins over the file name"
+    );
+
+    let too_long = format!("name={}", "x".repeat(201));
+    for (query, says) in [
+        ("name=", "1 to 200"),
+        (too_long.as_str(), "1 to 200"),
+        ("name=a%0Ab", "control"),
+        ("name=a&name=b", "twice"),
+    ] {
+        let response = submit(&client, &base, query, "model/gltf-binary", glb.clone()).await;
+        let error = expect_error(response, StatusCode::BAD_REQUEST, "bad_parameters").await;
+        assert!(
+            error["message"].as_str().unwrap().contains(says),
+            "{query}: {error}"
+        );
+    }
+    let id = named["id"].as_str().unwrap();
+    let listed = list_jobs(&client, &base).await;
+    let entry = listed["jobs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|j| j["id"] == id)
+        .expect("the named job is listed")
+        .clone();
+    assert_eq!(entry["name"], "Café room.glb");
+    let done = wait_for(&client, &base, id, "succeeded", Duration::from_secs(60)).await;
+    assert_eq!(done["name"], "Café room.glb");
+}
+
 /// Over HTTP a texture's image is a named part of a multipart upload (never a file of the
 /// server's): the job solves with it; a missing part, an image that cannot be decoded and glTF 1.0
 /// are 422s that name what to fix.

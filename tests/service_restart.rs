@@ -138,8 +138,10 @@ async fn finished_results_survive_a_restart() {
     let client = client();
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
-    let id = job_id(&submit_ok_keyed(&client, &base, "order=1", box_scene(0.5, 1), "k-1").await);
+    let query = "order=1&name=box%20scene.glb";
+    let id = job_id(&submit_ok_keyed(&client, &base, query, box_scene(0.5, 1), "k-1").await);
     let before = wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+    assert_eq!(before["name"], "box scene.glb");
     let result = get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await;
     let exr = get_bytes(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await;
     service.kill();
@@ -147,7 +149,7 @@ async fn finished_results_survive_a_restart() {
     let service = Service::start(&data, &[]);
     let base = service.base.clone();
     let after = get_job(&client, &base, &id).await;
-    assert_eq!(after, before, "the job is listed as it was");
+    assert_eq!(after, before, "the job is listed as it was (its name too)");
     assert_eq!(
         get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await,
         result

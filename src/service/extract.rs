@@ -1,32 +1,11 @@
 //! Extractors that wrap axum's and turn their rejections into [`ApiError`], so a request refused
-//! before any handler runs still gets the error JSON of docs/contract.md.
+//! before any handler runs still gets the error JSON of docs/contract.md. (The query of
+//! `POST /v1/jobs` is parsed by `routes::submit`, which takes the scene's `name` out of it.)
 
 use super::error::ApiError;
-use axum::extract::{FromRequestParts, Path, Query};
+use axum::extract::{FromRequestParts, Path};
 use axum::http::request::Parts;
 use serde::de::DeserializeOwned;
-
-/// `Query<T>` whose rejection is a 400 `bad_parameters` naming what is wrong.
-#[derive(Debug, Clone)]
-pub struct ApiQuery<T>(pub T);
-
-impl<T, S> FromRequestParts<S> for ApiQuery<T>
-where
-    T: DeserializeOwned,
-    S: Send + Sync,
-{
-    type Rejection = ApiError;
-
-    async fn from_request_parts(parts: &mut Parts, state: &S) -> Result<Self, Self::Rejection> {
-        match Query::<T>::from_request_parts(parts, state).await {
-            Ok(Query(value)) => Ok(ApiQuery(value)),
-            Err(rejection) => Err(ApiError::bad_parameters(format!(
-                "{}; parameters and their ranges are listed in api/openapi.yaml",
-                rejection.body_text()
-            ))),
-        }
-    }
-}
 
 /// `Path<T>` whose rejection is an error JSON with the rejection's status (400, or 500 for a
 /// routing mistake of ours).

@@ -137,6 +137,10 @@ pub struct JobLinks {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobView {
     pub id: String,
+    /// The scene's name: the `name` parameter of the submission, else the file name of a
+    /// multipart upload's `scene` part; absent when neither was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub state: JobState,
     /// RFC 3339 UTC.
     pub created: String,
@@ -155,6 +159,9 @@ pub struct JobView {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobRecord {
     pub id: String,
+    /// The scene's name (absent from jobs recorded before it existed, and from unnamed jobs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub state: JobState,
     pub created: String,
     pub created_unix_ms: u64,
@@ -177,6 +184,8 @@ pub struct Job {
     pub params: JobParams,
     /// The `Idempotency-Key` of the POST that created it.
     pub idempotency_key: Option<String>,
+    /// The scene's name, as shown in the job document (`JobView::name`).
+    pub name: Option<String>,
     /// The flag the solver checks (between shots and inside them): stop now.
     stop: AtomicBool,
     /// Set with `stop` when a client cancelled; `stop` alone means the server is shutting down
@@ -207,11 +216,18 @@ impl Job {
             seq,
             params,
             idempotency_key,
+            name: None,
             stop: AtomicBool::new(false),
             cancel: AtomicBool::new(false),
             status: watch::Sender::new(status),
             persist: Mutex::new(()),
         }
+    }
+
+    /// The job with its scene's name (already validated: `routes::submit`).
+    pub fn with_name(mut self, name: Option<String>) -> Job {
+        self.name = name;
+        self
     }
 
     pub fn status(&self) -> JobStatus {
@@ -262,6 +278,7 @@ impl Job {
         let base = format!("/v1/jobs/{}", self.id);
         JobView {
             id: self.id.to_string(),
+            name: self.name.clone(),
             state: status.state,
             created: rfc3339(self.created),
             params: self.params.clone(),
@@ -284,6 +301,7 @@ impl Job {
     fn record_of(&self, status: &JobStatus) -> JobRecord {
         JobRecord {
             id: self.id.to_string(),
+            name: self.name.clone(),
             state: status.state,
             created: rfc3339(self.created),
             created_unix_ms: unix_millis(self.created),
@@ -513,6 +531,33 @@ mod tests {
             board.next_seq(),
             JobParams::default(),
         ))
+    }
+
+    #[test]
+    fn a_name_goes_into_the_record_and_the_view_and_old_records_have_none() {
+        let board = JobBoard::new(4);
+        let named = Job::new(
+            JobId::for_tests("00000000000000aa"),
+            from_unix_millis(0xaa),
+            board.next_seq(),
+            JobParams::default(),
+        )
+        .with_name(Some("room.gltf".into()));
+        let record = serde_json::to_value(named.record()).unwrap();
+        assert_eq!(record["name"], "room.gltf");
+        assert_eq!(named.view().name.as_deref(), Some("room.gltf"));
+        let unnamed = job(&board, 0xab);
+        let record = serde_json::to_value(unnamed.record()).unwrap();
+        assert!(record.get("name").is_none(), "{record}");
+        assert!(serde_json::to_value(unnamed.view())
+            .unwrap()
+            .get("name")
+            .is_none());
+        // A state.json written before names existed reads back without one.
+        let mut old = record;
+        old.as_object_mut().unwrap().remove("name");
+        let back: JobRecord = serde_json::from_value(old).unwrap();
+        assert_eq!(back.name, None);
     }
 
     #[test]

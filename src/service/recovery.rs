@@ -88,6 +88,7 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
         .unwrap_or_else(|_| u64::from_str_radix(&id.as_str()[..11], 16).unwrap_or(0));
     let created = from_unix_millis(created_ms);
     let key = record.as_ref().ok().and_then(|r| r.idempotency_key.clone());
+    let name = record.as_ref().ok().and_then(|r| r.name.clone());
     let fail = |reason: String| {
         JobStatus {
         state: JobState::Failed,
@@ -117,7 +118,7 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
             stop_reason: record.stop_reason,
         };
         let params = params.unwrap_or_default();
-        let job = Job::restore(id.clone(), created, seq, params, status, key);
+        let job = Job::restore(id.clone(), created, seq, params, status, key).with_name(name);
         return (job, Outcome::Finished);
     }
     // Queued or running: it runs again from the start if its input is still there.
@@ -135,7 +136,8 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
         Ok(params) => {
             tracing::info!(job = %id, was = record.state.as_str(), "queued again after a restart");
             (
-                Job::restore(id.clone(), created, seq, params, JobStatus::queued(), key),
+                Job::restore(id.clone(), created, seq, params, JobStatus::queued(), key)
+                    .with_name(name),
                 Outcome::Requeue,
             )
         }
@@ -149,7 +151,8 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
                     JobParams::default(),
                     fail(reason),
                     key,
-                ),
+                )
+                .with_name(name),
                 Outcome::Failed,
             )
         }

@@ -133,8 +133,11 @@ pub async fn job_events(
 /// The dashboard page, embedded at build time.
 const DASHBOARD_HTML: &str = include_str!("assets/dashboard.html");
 
-/// `GET /`: the dashboard, a page that lists the jobs (polling `GET /v1/jobs`, with the API token
-/// when one is typed in), their progress, links to their outputs and a cancel button.
+/// `GET /`: the dashboard, a page with an upload form (`POST /v1/jobs`, multipart) and the list
+/// of jobs (polling `GET /v1/jobs`): their scene names, progress, stop reasons (a time budget
+/// apart from convergence), outputs (fetched with the API token when one is typed in, saved
+/// through blob URLs) and a cancel button. Checked in headless Chromium by
+/// `tests/real_clients/dashboard.rs`.
 pub async fn dashboard() -> Response {
     let mut response = Response::new(Body::from(DASHBOARD_HTML));
     let headers = response.headers_mut();
@@ -142,12 +145,13 @@ pub async fn dashboard() -> Response {
         header::CONTENT_TYPE,
         HeaderValue::from_static("text/html; charset=utf-8"),
     );
-    // Only its own inline script and style, and requests to this server.
+    // Only its own inline script and style, requests to this server, and images it fetched
+    // itself (blob URLs: previews fetched with the token).
     headers.insert(
         header::CONTENT_SECURITY_POLICY,
         HeaderValue::from_static(
             "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; \
-             connect-src 'self'; img-src 'self'",
+             connect-src 'self'; img-src 'self' blob:",
         ),
     );
     response

@@ -1,5 +1,5 @@
-//! `POST /v1/jobs`: a job's submission. Validates the parameters, the `Idempotency-Key`, the
-//! content type and length, reads the body (a scene, or multipart with the scene and its external
+//! `POST /v1/jobs`: a job's submission. Validates the parameters (the job's, and its scene's
+//! `name`: `submit_query`, `job_name`), the `Idempotency-Key`, the content type and length, reads the body (a scene, or multipart with the scene and its external
 //! files) under the upload limit, loads and checks the scene, estimates the memory, stores the
 //! job and queues it. Invariant: a job is on disk before its 202 is sent, and a submission that
 //! is refused leaves nothing behind (a job that does not fit the queue is discarded).
@@ -8,12 +8,11 @@ use crate::job::{estimated_memory_bytes, JobParams};
 use crate::pipeline::check_solvable;
 use crate::scene::{load_scene, ExternalFiles};
 use crate::service::error::{clip, ApiError};
-use crate::service::extract::ApiQuery;
 use crate::service::jobs::{Job, JobStatus};
 use crate::service::{AppState, RETRY_AFTER_SECONDS};
 use axum::body::Bytes;
 use axum::extract::multipart::MultipartError;
-use axum::extract::{FromRequest, Multipart, Request, State};
+use axum::extract::{FromRequest, Multipart, RawQuery, Request, State};
 use axum::http::{header, HeaderMap, HeaderName, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use axum::Json;
@@ -33,9 +32,10 @@ const ACCEPTED_SCENE_TYPES: [&str; 4] = [
 /// With an `Idempotency-Key` a retried POST gets the job the first one created.
 pub async fn create_job(
     State(state): State<AppState>,
-    ApiQuery(mut params): ApiQuery<JobParams>,
+    RawQuery(query): RawQuery,
     request: Request,
 ) -> Result<Response, ApiError> {
+    let (mut params, name) = submit_query(query.as_deref())?;
     params.validate().map_err(ApiError::bad_parameters)?;
     if let Some(cap) = state.config().max_job_seconds {
         let cap = cap as f64;
@@ -61,10 +61,11 @@ pub async fn create_job(
         .acquire()
         .await
         .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
-    let (body, parts) = match kind {
-        BodyKind::Scene => (read_body(request, max_body).await?, BTreeMap::new()),
+    let (body, parts, file_name) = match kind {
+        BodyKind::Scene => (read_body(request, max_body).await?, BTreeMap::new(), None),
         BodyKind::Multipart => read_multipart(request, max_body).await?,
     };
+    let name = name.or_else(|| file_name.as_deref().and_then(name_of_file));
 
     let max_triangles = state.config().max_triangles;
     let max_memory = state.config().max_memory_bytes;
@@ -101,14 +102,17 @@ pub async fn create_job(
         .await
         .map_err(|e| ApiError::internal("storing the job failed", e))?
         .map_err(|e| ApiError::internal("storing the job failed", e))?;
-    let job = Arc::new(Job::restore(
-        id,
-        created,
-        state.jobs().next_seq(),
-        params,
-        JobStatus::queued(),
-        key,
-    ));
+    let job = Arc::new(
+        Job::restore(
+            id,
+            created,
+            state.jobs().next_seq(),
+            params,
+            JobStatus::queued(),
+            key,
+        )
+        .with_name(name),
+    );
     let store = state.store().clone();
     let stored = job.clone();
     tokio::task::spawn_blocking(move || {
@@ -130,6 +134,76 @@ pub async fn create_job(
     }
     tracing::info!(job = %job.id, "job accepted");
     Ok(accepted(&job))
+}
+
+/// The query parameter that names the job's scene (not one of `JobParams`).
+const NAME_PARAM: &str = "name";
+
+/// Longest scene name accepted, in characters.
+pub const MAX_JOB_NAME_CHARS: usize = 200;
+
+/// The query of `POST /v1/jobs`: the job's parameters (`JobParams`, unknown names refused) and
+/// the optional `name` of its scene (`job_name`). 400 `bad_parameters` naming what is wrong.
+fn submit_query(query: Option<&str>) -> Result<(JobParams, Option<String>), ApiError> {
+    let bad = |e: &dyn std::fmt::Display| {
+        ApiError::bad_parameters(format!(
+            "Failed to deserialize query string: {e}; parameters and their ranges are listed in \
+             api/openapi.yaml"
+        ))
+    };
+    let pairs: Vec<(String, String)> =
+        serde_urlencoded::from_str(query.unwrap_or("")).map_err(|e| bad(&e))?;
+    let mut name = None;
+    let mut rest = Vec::with_capacity(pairs.len());
+    for (key, value) in pairs {
+        if key != NAME_PARAM {
+            rest.push((key, value));
+        } else if name.replace(value).is_some() {
+            return Err(ApiError::bad_parameters(
+                "the parameter 'name' is given twice",
+            ));
+        }
+    }
+    let rest = serde_urlencoded::to_string(&rest).map_err(|e| bad(&e))?;
+    let params: JobParams = serde_urlencoded::from_str(&rest).map_err(|e| bad(&e))?;
+    let name = name
+        .map(|n| job_name(&n))
+        .transpose()
+        .map_err(ApiError::bad_parameters)?;
+    Ok((params, name))
+}
+
+/// A scene name given as the `name` parameter: 1 to `MAX_JOB_NAME_CHARS` characters, no control
+/// characters (tests/http_uploads.rs, `a_job_carries_the_name_of_its_scene`).
+fn job_name(name: &str) -> Result<String, String> {
+    let chars = name.chars().count();
+    if chars == 0 || chars > MAX_JOB_NAME_CHARS {
+        return Err(format!(
+            "name must be 1 to {MAX_JOB_NAME_CHARS} characters (got {chars}); it names the scene \
+             in the job list"
+        ));
+    }
+    if name.trim().is_empty() || name.chars().any(char::is_control) {
+        return Err(
+            "name must be printable text: no control characters (tabs, line breaks), not only \
+             spaces"
+                .into(),
+        );
+    }
+    Ok(name.to_string())
+}
+
+/// The default name of a multipart upload: its `scene` part's file name, without any folder a
+/// client put in it, control characters dropped, clipped to `MAX_JOB_NAME_CHARS` characters;
+/// none when nothing is left.
+fn name_of_file(file_name: &str) -> Option<String> {
+    let base = file_name.rsplit(['/', '\\']).next().unwrap_or(file_name);
+    let name: String = base
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(MAX_JOB_NAME_CHARS)
+        .collect();
+    (!name.trim().is_empty()).then_some(name)
 }
 
 /// Longest `Idempotency-Key` accepted.
@@ -199,11 +273,12 @@ pub(super) async fn read_body(request: Request, max_body: usize) -> Result<Bytes
 const SCENE_PART: &str = "scene";
 
 /// A `multipart/form-data` upload: the part `scene`, and the files it references, each a part
-/// named by its URI (the part's name, else its file name).
+/// named by its URI (the part's name, else its file name). Also returns the `scene` part's file
+/// name, when it has one.
 async fn read_multipart(
     request: Request,
     max_body: usize,
-) -> Result<(Bytes, BTreeMap<String, Vec<u8>>), ApiError> {
+) -> Result<(Bytes, BTreeMap<String, Vec<u8>>, Option<String>), ApiError> {
     let bad = |message: String| ApiError::new(StatusCode::BAD_REQUEST, "bad_multipart", message);
     let multipart_error = |e: MultipartError| {
         if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
@@ -222,6 +297,7 @@ async fn read_multipart(
         ))
     })?;
     let mut scene = None;
+    let mut scene_file = None;
     let mut parts = BTreeMap::new();
     while let Some(field) = multipart.next_field().await.map_err(multipart_error)? {
         let name =
@@ -234,8 +310,10 @@ async fn read_multipart(
                     bad("every part needs a name: 'scene' for the scene, the URI it uses for a file"
                     .into())
                 })?;
+        let file_name = field.file_name().map(str::to_string);
         let bytes = field.bytes().await.map_err(multipart_error)?;
         if name == SCENE_PART {
+            scene_file = file_name;
             if scene.replace(bytes).is_some() {
                 return Err(bad("the upload has two parts named 'scene'".into()));
             }
@@ -253,7 +331,7 @@ async fn read_multipart(
                 .into(),
         )
     })?;
-    Ok((scene, parts))
+    Ok((scene, parts, scene_file))
 }
 
 /// 422 when the solve's estimated memory exceeds `--max-memory-bytes`.
@@ -355,5 +433,46 @@ mod tests {
         let e = check_content_type(&h).unwrap_err();
         assert_eq!(e.status, StatusCode::UNSUPPORTED_MEDIA_TYPE);
         assert!(e.message.contains("model/gltf-binary"));
+    }
+
+    #[test]
+    fn the_name_is_taken_out_of_the_job_parameters() {
+        let (params, name) = submit_query(Some("order=1&name=Cornell%20box.gltf")).unwrap();
+        assert_eq!(params.order, 1);
+        assert_eq!(name.as_deref(), Some("Cornell box.gltf"));
+        let (params, name) = submit_query(None).unwrap();
+        assert_eq!(params, JobParams::default());
+        assert_eq!(name, None);
+        for bad in [
+            "name=",
+            "name=%20%20",
+            "name=a%0Ab",
+            "name=a&name=b",
+            "nam=x",
+            "order=x",
+        ] {
+            let e = submit_query(Some(bad)).unwrap_err();
+            assert_eq!(e.code, "bad_parameters", "{bad}");
+        }
+        let long = format!("name={}", "é".repeat(MAX_JOB_NAME_CHARS + 1));
+        assert!(submit_query(Some(&long)).is_err());
+        let longest = format!("name={}", "é".repeat(MAX_JOB_NAME_CHARS));
+        assert!(submit_query(Some(&longest)).is_ok());
+    }
+
+    #[test]
+    fn a_file_name_names_the_job_without_its_folder() {
+        assert_eq!(name_of_file("scenes/box.glb").as_deref(), Some("box.glb"));
+        assert_eq!(
+            name_of_file("C:\\x\\room.gltf").as_deref(),
+            Some("room.gltf")
+        );
+        assert_eq!(name_of_file("a\tb.glb").as_deref(), Some("ab.glb"));
+        assert_eq!(name_of_file("dir/"), None);
+        let long = "x".repeat(500);
+        assert_eq!(
+            name_of_file(&long).map(|n| n.len()),
+            Some(MAX_JOB_NAME_CHARS)
+        );
     }
 }
