@@ -1,5 +1,5 @@
-// Opens wavrad's 3-D view of a finished job in headless Chromium, waits for the bake to render,
-// and prints one JSON line: the exposure, the page's errors, and the canvas pixels at a grid of
+// Opens wavrad's dashboard in headless Chromium, follows a finished job's "3-D view" link, waits
+// for the bake to render, and prints one JSON line: the exposure, the page's errors, and the canvas pixels at a grid of
 // points with the surface point and normal under each (from the page's `wavradView.sample`).
 // Usage: node viewer.mjs BASE_URL JOB_ID [TOKEN] [SCREENSHOT.png]
 import { launch } from './chromium.mjs';
@@ -14,7 +14,12 @@ try {
   await page.setViewportSize({ width: 480, height: 360 });
   await page.goto(base + '/');
   if (token) await page.evaluate((t) => localStorage.setItem('wavrad-token', t), token);
-  await page.goto(`${base}/view?job=${job}`);
+  // From the dashboard's job list, as a user gets there.
+  await page.reload();
+  const link = page.locator(`a.view3d[href="/view?job=${job}"]`);
+  await link.waitFor({ timeout: 30000 });
+  await link.click();
+  await page.waitForURL(`**/view?job=${job}`);
   await page.waitForFunction(() => window.wavradView && (window.wavradView.ready || window.wavradView.error), null, { timeout: 60000 });
   const state = await page.evaluate(() => ({ error: window.wavradView.error, lightmapped: window.wavradView.lightmappedMaterials }));
   let samples = [];
