@@ -60,7 +60,7 @@ async fn viewer_renders_the_bake_with_lightmaps_only() {
     let screenshot = Path::new(env!("CARGO_TARGET_TMPDIR")).join("viewer.png");
     let output = Command::new(node)
         .current_dir(clients::js_dir())
-        .env("CHROMIUM", chromium)
+        .env("WAVRAD_CHROMIUM", chromium)
         .args(["viewer.mjs", &base, &id, "", screenshot.to_str().unwrap()])
         .output()
         .expect("node runs");
