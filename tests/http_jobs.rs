@@ -73,7 +73,7 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
 
     // The job's files are on disk before the 202.
     let job_dir = dir.join("jobs").join(&id);
-    for file in ["scene.glb", "params.json", "state.json"] {
+    for file in ["input.glb", "params.json", "state.json"] {
         assert!(
             job_dir.join(file).is_file(),
             "{file} written before the 202"

@@ -99,7 +99,7 @@ async fn a_job_survives_a_kill_mid_solve_and_finishes_after_restart() {
     // While the server is down: the queued job's scene disappears, and a submission that was
     // never committed (no state.json) is left behind.
     let jobs = data.join("jobs");
-    std::fs::remove_file(jobs.join(&orphan).join("scene.glb")).unwrap();
+    std::fs::remove_file(jobs.join(&orphan).join("input.glb")).unwrap();
     let uncommitted = jobs.join("00000000001abcde");
     std::fs::create_dir(&uncommitted).unwrap();
 
@@ -308,5 +308,54 @@ async fn probes_answer_the_same_after_a_restart() {
             "job {id}: the same values after the restart"
         );
     }
+    drop(service);
+}
+
+/// A job directory written by the version before the baked scene (the upload stored as
+/// `scene.glb`, no `input.*`), built by hand from a finished job's files: after a start it still
+/// answers its result, lightmap and probes, and its `scene.glb` route answers 404
+/// `file_not_found` saying it predates baking, never the upload.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_directory_from_before_baking_still_answers() {
+    let data = data_dir("restart-legacy");
+    let client = client();
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    let id = job_id(&submit_ok(&client, &base, "order=1", box_scene(0.5, 2)).await);
+    wait_for(&client, &base, &id, "succeeded", Duration::from_secs(60)).await;
+    let baked = get(&client, format!("{base}/v1/jobs/{id}/scene.glb")).await;
+    assert_eq!(baked.status(), StatusCode::OK);
+    assert_eq!(baked.headers()["content-type"], "model/gltf-binary");
+    let points = json!([{"p": [0.5, 1.0, 0.5], "n": [0.0, -1.0, 0.0]}]);
+    let values = probe_ok(&client, &base, &id, &points).await;
+    let result = get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await;
+    service.kill();
+
+    // The old layout: the upload under the name the baked scene has now, no input.glb.
+    let dir = data.join("jobs").join(&id);
+    let upload = std::fs::read(dir.join("input.glb")).unwrap();
+    std::fs::remove_file(dir.join("input.glb")).unwrap();
+    std::fs::write(dir.join("scene.glb"), &upload).unwrap();
+
+    let service = Service::start(&data, &[]);
+    let base = service.base.clone();
+    assert_eq!(get_job(&client, &base, &id).await["state"], "succeeded");
+    assert_eq!(
+        get_bytes(&client, format!("{base}/v1/jobs/{id}/result")).await,
+        result
+    );
+    let exr = get(&client, format!("{base}/v1/jobs/{id}/lightmap.exr")).await;
+    assert_eq!(exr.status(), StatusCode::OK);
+    assert_eq!(probe_ok(&client, &base, &id, &points).await, values);
+    let old = expect_error(
+        get(&client, format!("{base}/v1/jobs/{id}/scene.glb")).await,
+        StatusCode::NOT_FOUND,
+        "file_not_found",
+    )
+    .await;
+    let message = old["message"].as_str().unwrap();
+    assert!(message.contains("predates baking"), "{message}");
+    // The upload is still where the old version put it, untouched.
+    assert_eq!(std::fs::read(dir.join("scene.glb")).unwrap(), upload);
     drop(service);
 }

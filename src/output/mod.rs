@@ -7,6 +7,7 @@
 //! nearest face value and bilinear filtering never bleeds black); alpha is the texel's coverage.
 
 pub(crate) mod atlas;
+pub mod baked_scene;
 pub mod probes;
 pub(crate) mod solution_file;
 
@@ -110,15 +111,32 @@ fn point_in_convex(p: DVec2, poly: &[DVec2]) -> bool {
     true
 }
 
-/// The requested quantity at world point `x` on root `i` (clamped into the root).
-fn value_on_root(solution: &Solution, i: usize, x: glam::DVec3) -> [f64; 3] {
+/// What a rendered texel holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TexelValue {
+    /// The job's quantity (the EXR pages): radiance, or irradiance / pi.
+    Requested,
+    /// The irradiance H itself, whatever the job's quantity (the baked scene's PNG pages).
+    Irradiance,
+}
+
+/// The texel value at world point `x` on root `i` (clamped into the root), never negative.
+fn value_on_root(solution: &Solution, i: usize, x: glam::DVec3, what: TexelValue) -> [f64; 3] {
     let root = &solution.roots[i];
     let st = clamp_to_shape(root.shape, plane_coordinates(&root.frame, x));
-    solution.value_at(i, st)
+    match what {
+        TexelValue::Requested => solution.value_at(i, st),
+        TexelValue::Irradiance => solution.irradiance_at(i, st).map(|h| h.max(0.0)),
+    }
 }
 
 /// RGBA texels of one surface's block: its rectangle plus the gutter, row-major from the top.
-fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Vec<[f32; 4]> {
+fn render_surface(
+    solution: &Solution,
+    surface: &Surface,
+    rect: AtlasRect,
+    what: TexelValue,
+) -> Vec<[f32; 4]> {
     let g = GUTTER as f64;
     let (bw, bh) = (
         (rect.w + 2 * GUTTER) as usize,
@@ -175,7 +193,7 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
                 coverage[k] += a;
                 let centre = DVec2::new(fx + 0.5, fy + 0.5);
                 if value[k].is_none() && point_in_convex(centre, &corners) {
-                    value[k] = Some(value_on_root(solution, i, to_world(centre)));
+                    value[k] = Some(value_on_root(solution, i, to_world(centre), what));
                 }
             }
         }
@@ -191,7 +209,7 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
                 (da.1 + da.2).total_cmp(&(db.1 + db.2))
             });
             nearest
-                .map(|i| value_on_root(solution, i, x))
+                .map(|i| value_on_root(solution, i, x, what))
                 .unwrap_or([0.0; 3])
         });
         let a = coverage[k].clamp(0.0, 1.0);
@@ -200,11 +218,21 @@ fn render_surface(solution: &Solution, surface: &Surface, rect: AtlasRect) -> Ve
     out
 }
 
-/// RGBA texels of every atlas page, row-major from the top.
+/// RGBA texels of every atlas page, row-major from the top: the job's quantity.
 pub fn render_pages(
     solution: &Solution,
     surfaces: &[Surface],
     atlas: &Atlas,
+) -> Vec<Vec<[f32; 4]>> {
+    render_pages_of(solution, surfaces, atlas, TexelValue::Requested)
+}
+
+/// [`render_pages`] with the texels holding `what` (same coverage, clamping and gutters).
+pub fn render_pages_of(
+    solution: &Solution,
+    surfaces: &[Surface],
+    atlas: &Atlas,
+    what: TexelValue,
 ) -> Vec<Vec<[f32; 4]>> {
     let mut pages: Vec<Vec<[f32; 4]>> = atlas
         .pages
@@ -214,7 +242,7 @@ pub fn render_pages(
     let blocks: Vec<Vec<[f32; 4]>> = surfaces
         .par_iter()
         .zip(atlas.rects.par_iter())
-        .map(|(surface, rect)| render_surface(solution, surface, *rect))
+        .map(|(surface, rect)| render_surface(solution, surface, *rect, what))
         .collect();
     for (block, r) in blocks.into_iter().zip(&atlas.rects) {
         let page = &mut pages[r.page as usize];
@@ -457,9 +485,53 @@ pub fn write_outputs(
         "faces": faces,
         "atlas": {"pages": page_json},
     });
+    let mut result = result;
+    if let Some(baked) = write_baked_scene(dir, scene, prepared, solution, &atlas)? {
+        result["baked_scene"] = baked;
+    }
     let text = serde_json::to_vec_pretty(&result).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("result.json"), &text)?;
     Ok(result)
+}
+
+/// File name of the baked scene in a job's outputs.
+pub const BAKED_SCENE_FILE: &str = "scene.glb";
+
+/// Writes `scene.glb` ([`baked_scene`]) when the scene was read from a glTF file: the atlas
+/// pages rendered again holding irradiance, as PNGs scaled by one `intensity`. Returns
+/// result.json's `baked_scene` object (`{"file", "intensity"}`).
+fn write_baked_scene(
+    dir: &Path,
+    scene: &Scene,
+    prepared: &Prepared,
+    solution: &Solution,
+    atlas: &Atlas,
+) -> std::io::Result<Option<Value>> {
+    if scene.source.is_none() {
+        return Ok(None);
+    }
+    let irradiance = render_pages_of(solution, &prepared.surfaces, atlas, TexelValue::Irradiance);
+    let intensity = baked_scene::lightmap_intensity(&irradiance);
+    let pages_png = irradiance
+        .iter()
+        .zip(&atlas.pages)
+        .map(|(texels, page)| baked_scene::lightmap_png(texels, page.width, page.height, intensity))
+        .collect::<std::io::Result<Vec<_>>>()?;
+    let inputs = baked_scene::BakeInputs {
+        scene,
+        faces: &prepared.faces,
+        surfaces: &prepared.surfaces,
+        atlas,
+        pages_png: &pages_png,
+        intensity,
+    };
+    let Some(glb) = baked_scene::baked_scene_glb(&inputs) else {
+        return Ok(None);
+    };
+    write_atomic(&dir.join(BAKED_SCENE_FILE), &glb)?;
+    Ok(Some(
+        json!({"file": BAKED_SCENE_FILE, "intensity": intensity}),
+    ))
 }
 
 /// The `faces --json` document.

@@ -4,12 +4,13 @@
 //! accessor reads go through bounds-checked readers, node graphs are walked with a visited set
 //! (cycles are reported, not followed), and the whole parse runs under `catch_unwind` as a last line.
 
-use super::buffers::load_buffers;
 pub use super::buffers::ExternalFiles;
+use super::buffers::{load_buffers, read_uri};
 use super::error::{Problem, SceneError};
 use super::gltf_textures::{read_textures, read_uv_sets, texture_slot};
 use super::{
-    LightKind, Material, PunctualLight, Scene, Triangle, TriangleSource, TriangleTexcoords,
+    GltfSource, LightKind, Material, MeshInstance, PunctualLight, Scene, Triangle, TriangleSource,
+    TriangleTexcoords,
 };
 use glam::{DMat4, DVec3};
 use std::path::Path;
@@ -285,6 +286,7 @@ fn load_scene_unchecked(
     let mut stack: Vec<(gltf::Node, DMat4, usize)> =
         roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
     let mut ignored_modes = 0usize;
+    let mut instances = Vec::new();
     while let Some((node, parent, depth)) = stack.pop() {
         if visited[node.index()] {
             problems.push(Problem {
@@ -330,7 +332,13 @@ fn load_scene_unchecked(
                     "the scene has more than {max_triangles} triangles (the limit --max-triangles); simplify it or raise the limit"
                 )));
             }
-            let _ = before;
+            instances.push(MeshInstance {
+                node: node.index() as u32,
+                mesh: mesh.index() as u32,
+                world,
+                mirrored: world.determinant() < 0.0,
+                triangles: before..triangles.len(),
+            });
         }
         if let Some(light) = node.light() {
             match read_light(&light, world) {
@@ -369,7 +377,85 @@ fn load_scene_unchecked(
     if !materials.iter().any(Material::has_texture) {
         texcoords.clear();
     }
-    Ok(Scene::new(triangles, materials, lights, warnings).with_textures(textures, texcoords))
+    let source = source_json(bytes).map(|json| {
+        let images = document
+            .images()
+            .map(|image| match image.source() {
+                gltf::image::Source::View { view, .. } => buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.get(view.offset()..view.offset().checked_add(view.length())?))
+                    .map(<[u8]>::to_vec),
+                gltf::image::Source::Uri { uri, .. } => read_uri(uri, external).ok(),
+            })
+            .collect();
+        std::sync::Arc::new(GltfSource {
+            json,
+            document,
+            buffers,
+            images,
+            instances,
+        })
+    });
+    let mut scene =
+        Scene::new(triangles, materials, lights, warnings).with_textures(textures, texcoords);
+    scene.source = source;
+    Ok(scene)
+}
+
+/// The file's JSON as written (the GLB's JSON chunk, or the whole file), `None` when it does not
+/// parse as JSON on its own (the `gltf` crate read it, so this does not happen in practice).
+fn source_json(bytes: &[u8]) -> Option<serde_json::Value> {
+    let json = if bytes.starts_with(b"glTF") {
+        // `check_container` has checked the chunk table.
+        let len = u32::from_le_bytes(bytes.get(12..16)?.try_into().ok()?) as usize;
+        bytes.get(20..20usize.checked_add(len)?)?
+    } else {
+        bytes
+    };
+    let json = json
+        .strip_prefix(b"\xEF\xBB\xBF".as_slice())
+        .unwrap_or(json);
+    serde_json::from_slice(json).ok()
+}
+
+/// The triangles of a primitive as index triples into its vertices, as the importer reads them
+/// (strips and fans unrolled, triangle `k` of the result being `TriangleSource::triangle` `k`);
+/// `None` for points and lines, or when its indices cannot be read.
+pub fn primitive_triangles(
+    primitive: &gltf::Primitive,
+    buffers: &[Vec<u8>],
+    vertex_count: usize,
+) -> Option<Vec<[u32; 3]>> {
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| d.as_slice()));
+    let indices: Vec<u32> = match primitive.indices() {
+        Some(_) => reader.read_indices()?.into_u32().collect(),
+        None => (0..vertex_count as u32).collect(),
+    };
+    triangle_indices(primitive.mode(), &indices)
+}
+
+/// Unrolls a primitive's index list into triangles (`None` for points and lines).
+fn triangle_indices(mode: gltf::mesh::Mode, indices: &[u32]) -> Option<Vec<[u32; 3]>> {
+    use gltf::mesh::Mode;
+    Some(match mode {
+        Mode::Triangles => indices
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]])
+            .collect(),
+        Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
+            .map(|i| {
+                if i.is_multiple_of(2) {
+                    [indices[i], indices[i + 1], indices[i + 2]]
+                } else {
+                    [indices[i + 1], indices[i], indices[i + 2]]
+                }
+            })
+            .collect(),
+        Mode::TriangleFan => (1..indices.len().saturating_sub(1))
+            .map(|i| [indices[0], indices[i], indices[i + 1]])
+            .collect(),
+        _ => return None,
+    })
 }
 
 /// glTF's own rule: `asset.version` (and `minVersion`, when given) must be 2.x.
@@ -479,32 +565,13 @@ fn read_mesh(
             },
             None => (0..positions.len() as u32).collect(),
         };
-        let tri_indices: Vec<[u32; 3]> = match mode {
-            Mode::Triangles => {
-                if !indices.len().is_multiple_of(3) {
-                    problems.push(Problem {
-                        place: place.clone(),
-                        message: format!("{} indices is not a multiple of 3", indices.len()),
-                    });
-                }
-                indices
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect()
-            }
-            Mode::TriangleStrip => (0..indices.len().saturating_sub(2))
-                .map(|i| {
-                    if i.is_multiple_of(2) {
-                        [indices[i], indices[i + 1], indices[i + 2]]
-                    } else {
-                        [indices[i + 1], indices[i], indices[i + 2]]
-                    }
-                })
-                .collect(),
-            _ => (1..indices.len().saturating_sub(1))
-                .map(|i| [indices[0], indices[i], indices[i + 1]])
-                .collect(),
-        };
+        if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
+            problems.push(Problem {
+                place: place.clone(),
+                message: format!("{} indices is not a multiple of 3", indices.len()),
+            });
+        }
+        let tri_indices = triangle_indices(mode, &indices).unwrap_or_default();
         if !triangle_problems(&place, &positions, &tri_indices, problems) {
             continue;
         }

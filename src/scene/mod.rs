@@ -26,7 +26,7 @@ pub mod gltf_writer;
 mod texture;
 
 pub use error::{Problem, SceneError};
-pub use gltf_import::{load_scene, load_scene_from_path, ExternalFiles};
+pub use gltf_import::{load_scene, load_scene_from_path, primitive_triangles, ExternalFiles};
 pub use texture::{srgb_to_linear, Texture, TextureSlot, UvTransform, Wrap};
 
 /// Every `.gltf` and `.glb` file under `dir`, sorted, skipping `original/` folders (untouched
@@ -207,6 +207,49 @@ pub struct Scene {
     pub textures: Vec<Arc<Texture>>,
     /// Per triangle (same index), its texture coordinates; empty when no material has a texture.
     pub texcoords: Vec<TriangleTexcoords>,
+    /// The glTF file the scene was read from (`None` for scenes built in code): what the baked
+    /// scene (`output::baked_scene`) rewrites.
+    pub source: Option<Arc<GltfSource>>,
+}
+
+/// The input glTF as the importer read it: its JSON as written (unknown extensions kept), the
+/// parsed document, its buffers, the encoded bytes of each image (`None` where unreadable), and
+/// the mesh instances the triangles came from.
+///
+/// Invariant: `instances` are in the order their triangles were pushed, each owning the
+/// contiguous range `triangles` of [`Scene::triangles`]; the triangles of one instance are those
+/// of its mesh's triangle primitives, in primitive order, triangle `k` of a primitive being
+/// [`primitive_triangles`]`[k]`.
+#[derive(Clone)]
+pub struct GltfSource {
+    pub json: serde_json::Value,
+    pub document: gltf::Document,
+    pub buffers: Vec<Vec<u8>>,
+    pub images: Vec<Option<Vec<u8>>>,
+    pub instances: Vec<MeshInstance>,
+}
+
+impl std::fmt::Debug for GltfSource {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GltfSource")
+            .field("buffers", &self.buffers.len())
+            .field("images", &self.images.len())
+            .field("instances", &self.instances)
+            .finish()
+    }
+}
+
+/// One node that places a mesh in the scene (a mesh used by several nodes has one per node).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MeshInstance {
+    pub node: u32,
+    pub mesh: u32,
+    /// The node's world matrix (local to world), column-major.
+    pub world: glam::DMat4,
+    /// The world matrix mirrors (negative determinant): the importer swapped corners 1 and 2.
+    pub mirrored: bool,
+    /// Its triangles in [`Scene::triangles`].
+    pub triangles: std::ops::Range<usize>,
 }
 
 impl Scene {
@@ -231,6 +274,7 @@ impl Scene {
             warnings,
             textures: Vec::new(),
             texcoords: Vec::new(),
+            source: None,
         }
     }
 

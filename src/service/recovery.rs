@@ -123,6 +123,10 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
     }
     // Queued or running: it runs again from the start if its input is still there.
     let input = params.and_then(|p| {
+        // Its run writes the baked `scene.glb`: an upload stored under that name moves first.
+        store
+            .adopt_legacy_upload(id)
+            .map_err(|e| format!("the scene cannot be moved to its new name: {e}"))?;
         let scene = store
             .scene_path(id)
             .map_err(|e| format!("the scene is missing: {e}"))?;

@@ -2,11 +2,13 @@
 //! write atomic (temporary file, fsync, rename) and the directory fsynced after it changes.
 //!
 //! Layout of a job directory:
-//! - `scene.glb` or `scene.gltf`: the uploaded scene, as received;
+//! - `input.glb` or `input.gltf`: the uploaded scene, as received (directories written before
+//!   the baked scene existed hold it as `scene.glb` or `scene.gltf`: [`FileStore::scene_path`]
+//!   still finds it there, and [`FileStore::predates_baking`] says so);
 //! - `params.json`: the job parameters, defaults filled in;
 //! - `state.json`: the job's [`JobRecord`](super::jobs::JobRecord), rewritten at every change of state;
 //! - the outputs of [`run_job`](crate::job::run_job): `result.json`, `lightmap*.exr`,
-//!   `convergence.csv`;
+//!   `convergence.csv`, `preview.png`, `scene.glb` (the baked scene);
 //! - `solution.bin`: a succeeded job's solution ([`crate::output::solution_file`]), written before
 //!   `state.json` says `succeeded`, read back to answer probe requests after a restart.
 //!
@@ -26,9 +28,13 @@ use std::path::{Path, PathBuf};
 use std::time::SystemTime;
 
 /// File name of the uploaded scene when it is a GLB.
-pub const SCENE_GLB: &str = "scene.glb";
+pub const INPUT_GLB: &str = "input.glb";
 /// File name of the uploaded scene when it is glTF JSON.
-pub const SCENE_GLTF: &str = "scene.gltf";
+pub const INPUT_GLTF: &str = "input.gltf";
+/// Where versions before the baked scene stored an uploaded GLB (now the baked scene's name).
+pub const LEGACY_SCENE_GLB: &str = "scene.glb";
+/// Where versions before the baked scene stored uploaded glTF JSON.
+pub const LEGACY_SCENE_GLTF: &str = "scene.gltf";
 /// The job parameters.
 pub const PARAMS_FILE: &str = "params.json";
 /// The job's state record.
@@ -99,8 +105,8 @@ impl SceneFormat {
 
     pub fn file_name(self) -> &'static str {
         match self {
-            SceneFormat::Glb => SCENE_GLB,
-            SceneFormat::Gltf => SCENE_GLTF,
+            SceneFormat::Glb => INPUT_GLB,
+            SceneFormat::Gltf => INPUT_GLTF,
         }
     }
 }
@@ -247,10 +253,16 @@ impl FileStore {
         sync_dir(&dir)
     }
 
-    /// Path of the uploaded scene of job `id`.
+    /// Path of the uploaded scene of job `id`: `input.*`, or in a directory that predates the
+    /// baked scene ([`FileStore::predates_baking`]) `scene.*`.
     pub fn scene_path(&self, id: &JobId) -> io::Result<PathBuf> {
         let dir = self.job_dir(id);
-        [SCENE_GLB, SCENE_GLTF]
+        let names: &[&str] = if self.predates_baking(id) {
+            &[LEGACY_SCENE_GLB, LEGACY_SCENE_GLTF]
+        } else {
+            &[INPUT_GLB, INPUT_GLTF]
+        };
+        names
             .iter()
             .map(|name| dir.join(name))
             .find(|p| p.is_file())
@@ -260,6 +272,35 @@ impl FileStore {
                     format!("job {id} has no scene file in {}", dir.display()),
                 )
             })
+    }
+
+    /// True when job `id`'s directory was written by a version before the baked scene: no
+    /// `input.*`, the upload stored as `scene.glb` or `scene.gltf` (so its `scene.glb`, if any,
+    /// is the upload, never a baked scene).
+    pub fn predates_baking(&self, id: &JobId) -> bool {
+        let dir = self.job_dir(id);
+        !dir.join(INPUT_GLB).is_file()
+            && !dir.join(INPUT_GLTF).is_file()
+            && (dir.join(LEGACY_SCENE_GLB).is_file() || dir.join(LEGACY_SCENE_GLTF).is_file())
+    }
+
+    /// Moves the upload of a directory that [predates baking](FileStore::predates_baking) to
+    /// `input.*`, before the job runs again (its run writes `scene.glb`, the baked scene).
+    pub fn adopt_legacy_upload(&self, id: &JobId) -> io::Result<()> {
+        if !self.predates_baking(id) {
+            return Ok(());
+        }
+        let dir = self.job_dir(id);
+        for (old, new) in [
+            (LEGACY_SCENE_GLB, INPUT_GLB),
+            (LEGACY_SCENE_GLTF, INPUT_GLTF),
+        ] {
+            if dir.join(old).is_file() {
+                std::fs::rename(dir.join(old), dir.join(new))?;
+                return sync_dir(&dir);
+            }
+        }
+        Ok(())
     }
 
     /// Path of an output file `name` (a plain file name, never a path) of job `id`.
@@ -328,6 +369,33 @@ mod tests {
         assert_eq!(a.as_str().len(), 16);
         assert!(a.as_str().bytes().all(|c| c.is_ascii_hexdigit()));
         assert!(a < b);
+    }
+
+    /// A directory of the version before the baked scene (upload as `scene.glb`): its scene is
+    /// found there, it predates baking, and before it runs again the upload moves to
+    /// `input.glb` (so the run's baked `scene.glb` cannot replace it).
+    #[test]
+    fn a_legacy_upload_is_found_and_adopted() {
+        let dir =
+            std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/tmp-store-legacy");
+        let _ = std::fs::remove_dir_all(&dir);
+        let store = FileStore::open(&dir).unwrap();
+        let id = store
+            .create_job_dir(super::super::time::from_unix_millis(1_700_000_000_000))
+            .unwrap();
+        std::fs::write(store.job_dir(&id).join(LEGACY_SCENE_GLB), b"glTF old").unwrap();
+        assert!(store.predates_baking(&id));
+        assert!(store.scene_path(&id).unwrap().ends_with(LEGACY_SCENE_GLB));
+        store.adopt_legacy_upload(&id).unwrap();
+        assert!(!store.predates_baking(&id));
+        let path = store.scene_path(&id).unwrap();
+        assert!(path.ends_with(INPUT_GLB));
+        assert_eq!(std::fs::read(path).unwrap(), b"glTF old");
+        // A new job's baked scene beside its input does not make it look old.
+        std::fs::write(store.job_dir(&id).join(LEGACY_SCENE_GLB), b"glTF baked").unwrap();
+        assert!(!store.predates_baking(&id));
+        assert!(store.scene_path(&id).unwrap().ends_with(INPUT_GLB));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

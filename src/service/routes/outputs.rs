@@ -236,6 +236,14 @@ pub async fn get_file(
             clip(&name, 100)
         )));
     };
+    if name == crate::output::BAKED_SCENE_FILE && state.store().predates_baking(&job.id) {
+        // Its `scene.glb` is the upload, not a baked scene.
+        return Err(ApiError::file_not_found(format!(
+            "job {} predates baking: it was solved by a version that wrote no baked scene \
+             (submit the scene again for one)",
+            job.id
+        )));
+    }
     let bytes = read_job_file(&state, &job, &name).await?;
     Ok(file_response(bytes, content_type))
 }
