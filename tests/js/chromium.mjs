@@ -20,6 +20,12 @@ export async function launch(options = {}) {
     ],
     ...options,
   });
-  context.on('close', () => rmSync(userDataDir, { recursive: true, force: true }));
+  context.on('close', () => {
+    try {
+      rmSync(userDataDir, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 });
+    } catch {
+      // Chromium may still be writing its profile; a temporary directory left behind is harmless.
+    }
+  });
   return context;
 }

@@ -10,7 +10,11 @@ const errors = [];
 try {
   const page = context.pages()[0] || (await context.newPage());
   page.on('pageerror', (e) => errors.push(String(e)));
-  page.on('console', (m) => { if (m.type() === 'error') errors.push(m.text()); });
+  // Answers the pages expect (the dashboard's 404 for a file not written) are logged as
+  // "Failed to load resource": only other errors count.
+  page.on('console', (m) => {
+    if (m.type() === 'error' && !m.text().startsWith('Failed to load resource')) errors.push(m.text());
+  });
   await page.setViewportSize({ width: 480, height: 360 });
   await page.goto(base + '/');
   if (token) await page.evaluate((t) => localStorage.setItem('wavrad-token', t), token);

@@ -106,16 +106,25 @@ async function main() {
   const box = new THREE.Box3().setFromObject(scene);
   const centre = box.getCenter(new THREE.Vector3());
   const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 1e-3);
-  let camera;
-  if (gltf.cameras.length > 0 && gltf.cameras[0].isPerspectiveCamera) {
-    camera = gltf.cameras[0];
+  // The glTF's first camera (its world pose, copied onto an unparented camera the orbit controls
+  // can move), else a raised diagonal view of the whole scene.
+  const camera = new THREE.PerspectiveCamera(45, 1, radius / 1000, radius * 100);
+  const target = centre.clone();
+  const own = gltf.cameras.find((c) => c.isPerspectiveCamera);
+  if (own) {
+    own.updateWorldMatrix(true, false);
+    camera.fov = own.fov;
+    camera.position.copy(own.getWorldPosition(new THREE.Vector3()));
+    camera.quaternion.copy(own.getWorldQuaternion(new THREE.Quaternion()));
+    const forward = own.getWorldDirection(new THREE.Vector3());
+    const along = Math.max(centre.clone().sub(camera.position).dot(forward), radius * 0.1);
+    target.copy(camera.position).addScaledVector(forward, along);
   } else {
-    camera = new THREE.PerspectiveCamera(45, 1, radius / 1000, radius * 100);
     camera.position.copy(centre).add(new THREE.Vector3(1, 0.8, 1.4).normalize().multiplyScalar(radius * 2.6));
-    camera.lookAt(centre);
   }
+  camera.lookAt(target);
   const controls = new OrbitControls(camera, canvas);
-  controls.target.copy(gltf.cameras.length > 0 ? camera.getWorldDirection(new THREE.Vector3()).multiplyScalar(radius).add(camera.getWorldPosition(new THREE.Vector3())) : centre);
+  controls.target.copy(target);
   controls.update();
 
   const render = () => {
