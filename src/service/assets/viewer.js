@@ -103,7 +103,14 @@ async function main() {
   const applyExposure = () => { renderer.toneMappingExposure = view.exposure * Math.pow(2, Number(slider.value)); };
   applyExposure();
 
-  const box = new THREE.Box3().setFromObject(scene);
+  // Framed on the surfaces that do not emit (a sky panel far above a model would shrink it),
+  // or on everything when all emit.
+  scene.updateMatrixWorld(true);
+  const box = new THREE.Box3();
+  scene.traverse((o) => {
+    if (o.isMesh && !(o.material.emissive && o.material.emissive.getHex() !== 0)) box.expandByObject(o);
+  });
+  if (box.isEmpty()) box.setFromObject(scene);
   const centre = box.getCenter(new THREE.Vector3());
   const radius = Math.max(box.getSize(new THREE.Vector3()).length() / 2, 1e-3);
   // The glTF's first camera (its world pose, copied onto an unparented camera the orbit controls
