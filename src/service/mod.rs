@@ -440,6 +440,13 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
     }
     vec![
         route("/", Method::GET, &["/"], get(routes::dashboard)),
+        route("/view", Method::GET, &["/view"], get(routes::viewer)),
+        route(
+            "/assets/{*file}",
+            Method::GET,
+            &["/assets/{file}"],
+            get(routes::asset),
+        ),
         route("/healthz", Method::GET, &["/healthz"], get(routes::healthz)),
         route("/metrics", Method::GET, &["/metrics"], get(routes::metrics)),
         route(

@@ -4,12 +4,14 @@
 //! Here: the service's own pages (dashboard, `/healthz`, `/metrics`, the OpenAPI document) and a
 //! job's life (`GET /v1/jobs`, `GET`/`DELETE /v1/jobs/{id}`, its event stream). Submission
 //! (`POST /v1/jobs`) is `submit`; a finished job's outputs (result, probes, convergence, files)
-//! are `outputs`. Every handler is re-exported here under its old path.
+//! are `outputs`; the 3-D view page and the static files pages load (three.js) are `pages`. Every handler is re-exported here under its old path.
 
 mod outputs;
+mod pages;
 mod submit;
 
 pub use outputs::{get_convergence, get_file, get_result, post_probes};
+pub use pages::{asset, viewer};
 pub use submit::create_job;
 
 use super::error::ApiError;

@@ -6,9 +6,8 @@
 // scene that never converges), OUT_DIR (downloads' copies and screenshots). DASHBOARD_HTML, when
 // set, serves that file as the page instead of the server's (for working on the page without
 // rebuilding the server).
-import { chromium } from "playwright-core";
-import { mkdtempSync, readFileSync, rmSync } from "node:fs";
-import { tmpdir } from "node:os";
+import { readFileSync } from "node:fs";
+import { launch } from "./chromium.mjs";
 import { basename, join } from "node:path";
 
 const env = (name) => {
@@ -116,19 +115,9 @@ async function download(page, id, file) {
   return { file, saved_as: d.suggestedFilename(), bytes: bytes.length, magic_ok: MAGIC[file](bytes), error: null };
 }
 
-const userDataDir = mkdtempSync(join(tmpdir(), "wavrad-chromium-"));
 let context = null;
 try {
-  context = await chromium.launchPersistentContext(userDataDir, {
-    executablePath: env("WAVRAD_CHROMIUM"),
-    headless: true,
-    acceptDownloads: true,
-    viewport: { width: 1280, height: 900 },
-    args: [
-      "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-      "--disable-background-networking", "--disable-component-update", "--disable-sync",
-    ],
-  });
+  context = await launch({ acceptDownloads: true, viewport: { width: 1280, height: 900 } });
   if (process.env.DASHBOARD_HTML) {
     const html = readFileSync(process.env.DASHBOARD_HTML);
     await context.route(`${base}/`, (route) =>
@@ -209,11 +198,9 @@ try {
   await phone.locator(`${row(first)} .outputs`).scrollIntoViewIfNeeded();
   await phone.screenshot({ path: join(outDir, "dashboard-phone.png"), fullPage: true });
   await context.close();
-  rmSync(userDataDir, { recursive: true, force: true });
   done(0);
 } catch (e) {
   report.error = String((e && e.stack) || e);
   if (context) await context.close().catch(() => {});
-  rmSync(userDataDir, { recursive: true, force: true });
   done(1);
 }

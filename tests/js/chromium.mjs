@@ -1,0 +1,31 @@
+// Headless Debian Chromium driven by playwright-core, with the flags this machine needs: no
+// sandbox (root), no background networking (the network is closed), WebGL through SwiftShader
+// (no GPU), a fresh profile. `WAVRAD_CHROMIUM` names the executable.
+import { chromium } from 'playwright-core';
+import { mkdtempSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join } from 'node:path';
+
+/// A persistent context (its first page is `context.pages()[0]`); `options` are playwright's
+/// launch options added to these. Closing it removes the profile.
+export async function launch(options = {}) {
+  const userDataDir = mkdtempSync(join(tmpdir(), 'wavrad-chromium-'));
+  const context = await chromium.launchPersistentContext(userDataDir, {
+    executablePath: process.env.WAVRAD_CHROMIUM || '/usr/bin/chromium',
+    headless: true,
+    args: [
+      '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync',
+      '--use-gl=angle', '--use-angle=swiftshader', '--enable-unsafe-swiftshader',
+    ],
+    ...options,
+  });
+  context.on('close', () => {
+    try {
+      rmSync(userDataDir, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 });
+    } catch {
+      // Chromium may still be writing its profile; a temporary directory left behind is harmless.
+    }
+  });
+  return context;
+}
