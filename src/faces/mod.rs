@@ -258,6 +258,7 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
         warnings: Vec::new(),
         textures: Vec::new(),
         texcoords: Vec::new(),
+        camera: None,
     };
     let welded = weld::weld(&scene.triangles, tol.length_m);
 
