@@ -1,7 +1,8 @@
 //! `preview.png`: a picture of the lit scene, rendered from a camera.
 //!
 //! The camera is the glTF file's first perspective camera (`Scene::camera`), else one that frames
-//! the scene ([`framing_camera`]: the bounding sphere seen whole from a raised diagonal). One ray per
+//! the scene ([`framing_camera`]: the bounding sphere of the faces that do not emit,
+//! [`subject_bounds`], seen whole from a raised diagonal). One ray per
 //! pixel centre is traced against every face (a BVH of its own over the faces' triangulations: the
 //! solver's visibility BVH leaves out the faces that bound the scene). Back faces of single-sided
 //! faces are culled, as engines do, so a closed room seen from outside shows its inside. The hit
@@ -293,7 +294,31 @@ impl Render {
     }
 }
 
-/// `preview.png` of a solved scene: from the scene's camera, else [`framing_camera`].
+/// What the framing camera frames: the bounds of the faces that do not emit, else of the scene. A
+/// sky panel over a lit model (seen from above, its single-sided face is culled) would otherwise
+/// shrink the model to a few pixels.
+pub fn subject_bounds(scene: &Scene, prepared: &Prepared) -> Bounds {
+    let mut bounds = Bounds::empty();
+    for f in &prepared.faces.faces {
+        if scene
+            .materials
+            .get(f.material as usize)
+            .is_some_and(|m| !m.is_emissive())
+        {
+            for v in f.triangulation.iter().flatten() {
+                bounds.extend(*v);
+            }
+        }
+    }
+    if bounds.min.x <= bounds.max.x {
+        bounds
+    } else {
+        scene.bounds
+    }
+}
+
+/// `preview.png` of a solved scene: from the scene's camera, else [`framing_camera`] of the
+/// [`subject_bounds`].
 pub fn preview_png(
     scene: &Scene,
     prepared: &Prepared,
@@ -301,7 +326,7 @@ pub fn preview_png(
 ) -> std::io::Result<Vec<u8>> {
     let camera = scene
         .camera
-        .unwrap_or_else(|| framing_camera(&scene.bounds, DEFAULT_ASPECT));
+        .unwrap_or_else(|| framing_camera(&subject_bounds(scene, prepared), DEFAULT_ASPECT));
     let (width, height) = image_size(&camera);
     render(prepared, solution, &View::new(camera, width, height)).to_png()
 }
@@ -499,5 +524,41 @@ mod tests {
         let seen = render.pixels[k].expect("sees A through D's back");
         assert!(a[0] > 0.0);
         assert!((0..3).all(|i| (seen[i] - a[i]).abs() <= 1e-12 * a[i].max(1.0)));
+    }
+
+    /// A sky panel (an emitter far larger than the model under it) is left out of what the
+    /// framing camera frames; a scene whose every face emits is framed whole.
+    #[test]
+    fn the_framing_leaves_out_emitters() {
+        use crate::scene::gltf_writer::SceneBuilder;
+        use crate::scene::{load_scene, ExternalFiles};
+        let mut b = SceneBuilder::new();
+        let model = b.material([0.5; 3], [0.0; 3], false);
+        let sky = b.material([0.0; 3], [1.0; 3], false);
+        b.quad(model, DVec3::ZERO, DVec3::X, DVec3::Z * -1.0, 1);
+        b.quad(
+            sky,
+            DVec3::new(-50.0, 10.0, 50.0),
+            DVec3::Z * -100.0,
+            DVec3::X * 100.0,
+            1,
+        );
+        let scene = load_scene(&b.to_glb(), &ExternalFiles::Refuse, 1000).expect("loads");
+        let prepared = crate::pipeline::prepare(&scene, crate::domain::DomainMode::Extended);
+        let bounds = subject_bounds(&scene, &prepared);
+        assert!(
+            (bounds.min - DVec3::new(0.0, 0.0, -1.0)).length() < 1e-9,
+            "{bounds:?}"
+        );
+        assert!(
+            (bounds.max - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-9,
+            "{bounds:?}"
+        );
+        let mut b = SceneBuilder::new();
+        let sky = b.material([0.0; 3], [1.0; 3], false);
+        b.quad(sky, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+        let scene = load_scene(&b.to_glb(), &ExternalFiles::Refuse, 1000).expect("loads");
+        let prepared = crate::pipeline::prepare(&scene, crate::domain::DomainMode::Extended);
+        assert_eq!(subject_bounds(&scene, &prepared), scene.bounds);
     }
 }
