@@ -107,6 +107,29 @@ async fn a_small_scene_is_solved_and_its_outputs_downloaded() {
         )
     );
 
+    // Both pictures: the atlas page's size, and the view of the scene (640 x 480, no camera).
+    for (file, size) in [
+        (
+            "atlas.png",
+            (
+                page["width"].as_u64().unwrap(),
+                page["height"].as_u64().unwrap(),
+            ),
+        ),
+        ("preview.png", (640, 480)),
+    ] {
+        let png = get(&client, format!("{base}/v1/jobs/{id}/{file}")).await;
+        assert_eq!(png.status(), StatusCode::OK, "{file}");
+        assert_eq!(png.headers()["content-type"], "image/png");
+        let bytes = png.bytes().await.unwrap();
+        let header = png::Decoder::new(std::io::Cursor::new(bytes))
+            .read_info()
+            .expect("a PNG")
+            .info()
+            .size();
+        assert_eq!((header.0 as u64, header.1 as u64), size, "{file}");
+    }
+
     let missing = get(&client, format!("{base}/v1/jobs/{id}/lightmap-7.exr")).await;
     error_of(missing, StatusCode::NOT_FOUND).await;
 

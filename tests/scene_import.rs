@@ -361,3 +361,67 @@ fn fuzz_crashes_are_refused_with_a_reason() {
         assert!(!m.contains("parser failed"), "{file}: {m}");
     }
 }
+
+/// The glTF's first perspective camera is read in world space (node `-Z` forward, `+Y` up, parent
+/// transforms applied); an orthographic camera on a later node does not replace it; a file
+/// without one has none (the preview then frames the scene).
+#[test]
+fn the_importer_reads_the_first_perspective_camera_in_world_space() {
+    use wavrad::scene::Camera;
+    let forward = DVec3::new(-1.0, -0.5, -1.0).normalize();
+    let up = (DVec3::Y - forward * forward.y).normalize();
+    let camera = Camera {
+        position: DVec3::new(1.0, 2.0, 3.0),
+        forward,
+        up,
+        yfov: 0.7,
+        aspect: Some(1.5),
+        znear: 0.05,
+    };
+    let mut b = SceneBuilder::new();
+    let m = b.material([0.5; 3], [1.0; 3], false);
+    b.quad(m, DVec3::ZERO, DVec3::X, DVec3::Y, 1);
+    b.camera(camera);
+    let glb = b.to_glb();
+    let close = |a: DVec3, b: DVec3| (a - b).length() < 1e-5;
+    let scene = load_scene(&glb, &ExternalFiles::Refuse, LIMIT).expect("loads");
+    let read = scene.camera.expect("the camera is read");
+    assert!(close(read.position, camera.position), "{read:?}");
+    assert!(
+        close(read.forward, forward) && close(read.up, up),
+        "{read:?}"
+    );
+    assert!((read.yfov - 0.7).abs() < 1e-6 && (read.aspect.unwrap() - 1.5).abs() < 1e-6);
+    assert!((read.znear - 0.05).abs() < 1e-6);
+
+    // The camera node under a parent that moves it and scales it by 2; an orthographic camera on
+    // a node of a higher index.
+    let (mut doc, bin) = glb_parts(&glb);
+    let nodes = doc["nodes"].as_array().unwrap().len();
+    let camera_node = nodes - 1;
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"translation": [10.0, 0.0, 0.0], "scale": [2.0, 2.0, 2.0], "children": [camera_node]}));
+    doc["cameras"].as_array_mut().unwrap().push(
+        json!({"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}),
+    );
+    doc["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"camera": 1, "translation": [0.0, 0.0, 9.0]}));
+    let roots: Vec<usize> = (0..camera_node).chain([nodes, nodes + 1]).collect();
+    doc["scenes"][0]["nodes"] = json!(roots);
+    let scene =
+        load_scene(&glb_from_parts(&doc, &bin), &ExternalFiles::Refuse, LIMIT).expect("loads");
+    let read = scene.camera.expect("the perspective camera is read");
+    assert!(close(read.position, DVec3::new(12.0, 4.0, 6.0)), "{read:?}");
+    assert!(
+        close(read.forward, forward) && close(read.up, up),
+        "{read:?}"
+    );
+
+    // Without a camera: none.
+    let scene = load_scene(&one_quad_glb(), &ExternalFiles::Refuse, LIMIT).expect("loads");
+    assert_eq!(scene.camera, None);
+}

@@ -259,6 +259,7 @@ pub fn merge_planar_faces(scene: &Scene) -> FaceSet {
         textures: Vec::new(),
         texcoords: Vec::new(),
         source: None,
+        camera: None,
     };
     let welded = weld::weld(&scene.triangles, tol.length_m);
 

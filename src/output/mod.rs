@@ -1,5 +1,5 @@
-//! Outputs of a solve: the lightmap atlas (EXR pages), result.json and convergence.csv, and the
-//! `faces --json` document. Reads the solution; never changes it.
+//! Outputs of a solve: the lightmap atlas (EXR pages, `atlas.png`), `preview.png` (a picture of
+//! the lit scene, `preview.rs`), result.json and convergence.csv, and the `faces --json` document. Reads the solution; never changes it.
 //!
 //! Texel conventions (docs/contract.md): texel `(i, j)` of a root's rectangle covers `s` in `[i/w, (i+1)/w]`
 //! and `t` in `[j/h, (j+1)/h]` (rows from the top of the image); its value is the solution at the
@@ -11,6 +11,7 @@
 
 pub(crate) mod atlas;
 pub mod baked_scene;
+pub mod preview;
 pub mod probes;
 pub(crate) mod solution_file;
 
@@ -321,32 +322,39 @@ fn preview_scale(texels: &[[f32; 4]]) -> f32 {
     }
 }
 
-/// `preview.png`: the first atlas page, exposed by [`preview_scale`], sRGB-encoded, uncovered texels dimmed.
-pub fn preview_png(texels: &[[f32; 4]], width: u32, height: u32) -> std::io::Result<Vec<u8>> {
-    let scale = preview_scale(texels);
-    let srgb = |x: f32| {
-        let x = (x * scale).clamp(0.0, 1.0);
-        let e = if x <= 0.0031308 {
-            12.92 * x
-        } else {
-            1.055 * x.powf(1.0 / 2.4) - 0.055
-        };
-        (e * 255.0 + 0.5) as u8
+/// sRGB encoding of a linear value, clamped to `[0, 1]`, as an 8-bit value.
+pub(crate) fn srgb8(x: f32) -> u8 {
+    let x = x.clamp(0.0, 1.0);
+    let e = if x <= 0.0031308 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
     };
-    let mut data = Vec::with_capacity(texels.len() * 3);
-    for t in texels {
-        let dim = if t[3] > 0.0 { 1.0 } else { 0.25 };
-        data.extend([srgb(t[0] * dim), srgb(t[1] * dim), srgb(t[2] * dim)]);
-    }
+    (e * 255.0 + 0.5) as u8
+}
+
+/// An 8-bit RGB PNG of `data` (row-major from the top, three bytes a pixel).
+pub(crate) fn encode_rgb_png(data: &[u8], width: u32, height: u32) -> std::io::Result<Vec<u8>> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
         let mut w = enc.write_header().map_err(std::io::Error::other)?;
-        w.write_image_data(&data).map_err(std::io::Error::other)?;
+        w.write_image_data(data).map_err(std::io::Error::other)?;
     }
     Ok(out)
+}
+
+/// `atlas.png`: the first atlas page, exposed by [`preview_scale`], sRGB-encoded, uncovered texels dimmed.
+pub fn atlas_png(texels: &[[f32; 4]], width: u32, height: u32) -> std::io::Result<Vec<u8>> {
+    let scale = preview_scale(texels);
+    let mut data = Vec::with_capacity(texels.len() * 3);
+    for t in texels {
+        let dim = if t[3] > 0.0 { 1.0 } else { 0.25 };
+        data.extend([0, 1, 2].map(|c| srgb8(t[c] * dim * scale)));
+    }
+    encode_rgb_png(&data, width, height)
 }
 
 /// `convergence.csv`: one row per shot.
@@ -447,10 +455,14 @@ pub fn write_outputs(
     )?;
     if let (Some(texels), Some(page)) = (pages.first(), atlas.pages.first()) {
         write_atomic(
-            &dir.join("preview.png"),
-            &preview_png(texels, page.width, page.height)?,
+            &dir.join("atlas.png"),
+            &atlas_png(texels, page.width, page.height)?,
         )?;
     }
+    write_atomic(
+        &dir.join("preview.png"),
+        &preview::preview_png(scene, prepared, solution)?,
+    )?;
     let faces: Vec<Value> = prepared
         .surfaces
         .iter()

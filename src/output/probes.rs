@@ -64,39 +64,54 @@ pub fn evaluate_probes(
         .map(|pr| {
             let x = DVec3::from(pr.p);
             let n = DVec3::from(pr.n).normalize();
-            let mut best: Option<(f64, usize, DVec2, bool)> = None;
-            for (i, r) in solution.roots.iter().enumerate() {
-                let (st, dist, outside) = r.locate(x);
-                if dist > tol || outside > tol {
-                    continue;
-                }
-                let same_side = r.normal.dot(n) > 0.0;
-                let score = dist + outside + if same_side { 0.0 } else { 1.0 * diagonal };
-                if best.is_none_or(|b| score < b.0) {
-                    best = Some((score, i, st, same_side));
-                }
-            }
-            match best {
-                Some((_, i, st, true)) => ProbeValue {
-                    l: Some(solution.value_at(i, st)),
-                    face: Some(solution.roots[i].face.0),
-                    error: None,
-                },
-                // Only the other side of a single-sided face is here: it reflects nothing.
-                Some((_, i, _, false)) => ProbeValue {
-                    l: Some([0.0; 3]),
-                    face: Some(solution.roots[i].face.0),
-                    error: match solution.params.quantity {
-                        Quantity::Irradiance => Some("the back of a single-sided face: its irradiance is not computed in this version".into()),
-                        Quantity::Radiance => None,
-                    },
-                },
-                None => ProbeValue {
-                    l: None,
-                    face: None,
-                    error: Some(format!("no surface within {tol:.3e} m of this point")),
-                },
-            }
+            value_at_point(solution, 0..solution.roots.len(), x, n, tol, diagonal)
         })
         .collect()
+}
+
+/// The probe rule (module header) for the point `x` seen from the side `n` (unit), among the
+/// roots `candidates`, each within `tol` of `x`: every probe, and the preview at the surface a
+/// pixel sees (`output::preview`, with the hit face's roots), go through it.
+pub(crate) fn value_at_point(
+    solution: &Solution,
+    candidates: impl IntoIterator<Item = usize>,
+    x: DVec3,
+    n: DVec3,
+    tol: f64,
+    diagonal: f64,
+) -> ProbeValue {
+    let mut best: Option<(f64, usize, DVec2, bool)> = None;
+    for i in candidates {
+        let r = &solution.roots[i];
+        let (st, dist, outside) = r.locate(x);
+        if dist > tol || outside > tol {
+            continue;
+        }
+        let same_side = r.normal.dot(n) > 0.0;
+        let score = dist + outside + if same_side { 0.0 } else { 1.0 * diagonal };
+        if best.is_none_or(|b| score < b.0) {
+            best = Some((score, i, st, same_side));
+        }
+    }
+    match best {
+        Some((_, i, st, true)) => ProbeValue {
+            l: Some(solution.value_at(i, st)),
+            face: Some(solution.roots[i].face.0),
+            error: None,
+        },
+        // Only the other side of a single-sided face is here: it reflects nothing.
+        Some((_, i, _, false)) => ProbeValue {
+            l: Some([0.0; 3]),
+            face: Some(solution.roots[i].face.0),
+            error: match solution.params.quantity {
+                Quantity::Irradiance => Some("the back of a single-sided face: its irradiance is not computed in this version".into()),
+                Quantity::Radiance => None,
+            },
+        },
+        None => ProbeValue {
+            l: None,
+            face: None,
+            error: Some(format!("no surface within {tol:.3e} m of this point")),
+        },
+    }
 }

@@ -9,8 +9,8 @@ use super::buffers::{load_buffers, read_uri};
 use super::error::{Problem, SceneError};
 use super::gltf_textures::{read_textures, read_uv_sets, texture_slot};
 use super::{
-    GltfSource, LightKind, Material, MeshInstance, PunctualLight, Scene, Triangle, TriangleSource,
-    TriangleTexcoords,
+    Camera, GltfSource, LightKind, Material, MeshInstance, PunctualLight, Scene, Triangle,
+    TriangleSource, TriangleTexcoords,
 };
 use glam::{DMat4, DVec3};
 use std::path::Path;
@@ -282,6 +282,7 @@ fn load_scene_unchecked(
     let mut triangles = Vec::new();
     let mut texcoords = Vec::new();
     let mut lights = Vec::new();
+    let mut cameras: Vec<(usize, gltf::Camera, DMat4)> = Vec::new();
     let mut visited = vec![false; document.nodes().len()];
     let mut stack: Vec<(gltf::Node, DMat4, usize)> =
         roots.into_iter().map(|n| (n, DMat4::IDENTITY, 0)).collect();
@@ -349,6 +350,9 @@ fn load_scene_unchecked(
                 }),
             }
         }
+        if let Some(camera) = node.camera() {
+            cameras.push((node.index(), camera, world));
+        }
         for child in node.children() {
             stack.push((child, world, depth + 1));
         }
@@ -377,6 +381,19 @@ fn load_scene_unchecked(
     if !materials.iter().any(Material::has_texture) {
         texcoords.clear();
     }
+    let camera = cameras
+        .iter()
+        .min_by_key(|c| c.0)
+        .and_then(|(node, camera, world)| match read_camera(camera, *world) {
+            Ok(c) => Some(c),
+            Err(why) => {
+                warnings.push(format!(
+                    "node {node} camera {}: {why}; the preview frames the scene instead",
+                    camera.index()
+                ));
+                None
+            }
+        });
     let source = source_json(bytes).map(|json| {
         let images = document
             .images()
@@ -396,8 +413,9 @@ fn load_scene_unchecked(
             instances,
         })
     });
-    let mut scene =
-        Scene::new(triangles, materials, lights, warnings).with_textures(textures, texcoords);
+    let mut scene = Scene::new(triangles, materials, lights, warnings)
+        .with_textures(textures, texcoords)
+        .with_camera(camera);
     scene.source = source;
     Ok(scene)
 }
@@ -455,6 +473,44 @@ fn triangle_indices(mode: gltf::mesh::Mode, indices: &[u32]) -> Option<Vec<[u32;
             .map(|i| [indices[0], indices[i], indices[i + 1]])
             .collect(),
         _ => return None,
+    })
+}
+
+/// A camera node in world space: the node's `-Z` is the view direction, `+Y` the up direction
+/// (`camera_node_in_world_space`). Only perspective cameras with a usable field of view and
+/// transform; the reason otherwise (the camera only serves the preview: a warning, not a problem).
+fn read_camera(camera: &gltf::Camera, world: DMat4) -> Result<Camera, String> {
+    let gltf::camera::Projection::Perspective(p) = camera.projection() else {
+        return Err("an orthographic camera is not used".into());
+    };
+    let yfov = f64::from(p.yfov());
+    if !(yfov > 0.0 && yfov < std::f64::consts::PI) {
+        return Err(format!("yfov {yfov} is not in (0, pi)"));
+    }
+    let aspect = p.aspect_ratio().map(f64::from);
+    if aspect.is_some_and(|a| !(a.is_finite() && a > 0.0)) {
+        return Err("aspectRatio is not a positive number".into());
+    }
+    let znear = f64::from(p.znear());
+    let position = world.transform_point3(DVec3::ZERO);
+    let forward = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+    let up = world.transform_vector3(DVec3::Y);
+    // Up made orthogonal to the view direction (a sheared transform may tilt it).
+    let up = (up - forward * up.dot(forward)).normalize_or_zero();
+    if forward == DVec3::ZERO || up == DVec3::ZERO || !position.is_finite() {
+        return Err("its node transform is degenerate (zero scale)".into());
+    }
+    Ok(Camera {
+        position,
+        forward,
+        up,
+        yfov,
+        aspect,
+        znear: if znear.is_finite() && znear > 0.0 {
+            znear
+        } else {
+            0.0
+        },
     })
 }
 

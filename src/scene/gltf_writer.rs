@@ -2,10 +2,10 @@
 //!
 //! Used by tests to make hand-built scenes (and by fuzzing seeds); it writes exactly the subset the
 //! importer reads: one mesh per material group, `POSITION` + `indices`, materials with
-//! `baseColorFactor`, `emissiveFactor`, `KHR_materials_emissive_strength`, `doubleSided`, and
-//! optionally `KHR_lights_punctual` lights.
+//! `baseColorFactor`, `emissiveFactor`, `KHR_materials_emissive_strength`, `doubleSided`,
+//! optionally `KHR_lights_punctual` lights, and optionally one perspective camera.
 
-use super::{LightKind, Material, PunctualLight};
+use super::{Camera, LightKind, Material, PunctualLight};
 use glam::DVec3;
 use serde_json::{json, Value};
 
@@ -16,6 +16,7 @@ pub struct SceneBuilder {
     /// Per mesh: material index, positions, indices.
     meshes: Vec<(u32, Vec<[f32; 3]>, Vec<u32>)>,
     lights: Vec<PunctualLight>,
+    camera: Option<Camera>,
 }
 
 impl SceneBuilder {
@@ -84,6 +85,12 @@ impl SceneBuilder {
 
     pub fn light(&mut self, light: PunctualLight) -> &mut Self {
         self.lights.push(light);
+        self
+    }
+
+    /// Adds a perspective camera node (written after the meshes and lights).
+    pub fn camera(&mut self, camera: Camera) -> &mut Self {
+        self.camera = Some(camera);
         self
     }
 
@@ -163,6 +170,24 @@ impl SceneBuilder {
                 "extensions": {"KHR_lights_punctual": {"light": light_json.len() - 1}}}),
             );
         }
+        let mut cameras = Vec::new();
+        if let Some(c) = &self.camera {
+            let mut perspective = json!({"yfov": c.yfov, "znear": c.znear.max(1e-6)});
+            if let Some(aspect) = c.aspect {
+                perspective["aspectRatio"] = json!(aspect);
+            }
+            cameras.push(json!({"type": "perspective", "perspective": perspective}));
+            // The node's axes: +X right, +Y up, +Z behind the camera.
+            let back = -c.forward.normalize();
+            let right = c.up.cross(back).normalize();
+            let up = back.cross(right);
+            let q = glam::DQuat::from_mat3(&glam::DMat3::from_cols(right, up, back));
+            let t = c.position;
+            nodes.push(
+                json!({"translation": [t.x, t.y, t.z], "rotation": [q.x, q.y, q.z, q.w],
+                "camera": 0}),
+            );
+        }
         let materials: Vec<Value> = self
             .materials
             .iter()
@@ -196,6 +221,9 @@ impl SceneBuilder {
             "buffers": [{"byteLength": bin.len()}],
             "extensionsUsed": ["KHR_materials_emissive_strength", "KHR_lights_punctual"],
         });
+        if !cameras.is_empty() {
+            root["cameras"] = json!(cameras);
+        }
         if !light_json.is_empty() {
             root["extensions"] = json!({"KHR_lights_punctual": {"lights": light_json}});
         }

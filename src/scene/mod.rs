@@ -160,6 +160,23 @@ pub enum LightKind {
     },
 }
 
+/// A perspective camera in world space: a glTF camera node's (`-Z` of the node is `forward`, `+Y`
+/// is `up`), read by the importer; the preview renders from it (`output::preview`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Camera {
+    pub position: DVec3,
+    /// Unit direction the camera looks along.
+    pub forward: DVec3,
+    /// Unit up direction, orthogonal to `forward`.
+    pub up: DVec3,
+    /// Vertical field of view, radians, in `(0, pi)`.
+    pub yfov: f64,
+    /// Width over height of the image, when the file gives it (positive and finite).
+    pub aspect: Option<f64>,
+    /// Distance of the near plane, metres (0 when the file's is not positive).
+    pub znear: f64,
+}
+
 /// Axis-aligned bounds of the scene's vertices.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Bounds {
@@ -207,6 +224,8 @@ pub struct Scene {
     pub textures: Vec<Arc<Texture>>,
     /// Per triangle (same index), its texture coordinates; empty when no material has a texture.
     pub texcoords: Vec<TriangleTexcoords>,
+    /// The file's first perspective camera (lowest node index in the scene), if any.
+    pub camera: Option<Camera>,
     /// The glTF file the scene was read from (`None` for scenes built in code): what the baked
     /// scene (`output::baked_scene`) rewrites.
     pub source: Option<Arc<GltfSource>>,
@@ -275,7 +294,14 @@ impl Scene {
             textures: Vec::new(),
             texcoords: Vec::new(),
             source: None,
+            camera: None,
         }
+    }
+
+    /// The scene with the camera the file gives.
+    pub fn with_camera(mut self, camera: Option<Camera>) -> Self {
+        self.camera = camera;
+        self
     }
 
     /// The scene with textures and per-triangle texture coordinates (`texcoords` empty, or one

@@ -510,6 +510,7 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
                 "/v1/jobs/{id}/lightmap.exr",
                 "/v1/jobs/{id}/lightmap-{n}.exr",
                 "/v1/jobs/{id}/preview.png",
+                "/v1/jobs/{id}/atlas.png",
                 "/v1/jobs/{id}/scene.glb",
             ],
             get(routes::get_file),

@@ -194,7 +194,7 @@ fn bounding_planes_within(
 
 /// Möller-Trumbore in f64; returns the ray parameter of the hit (edges inclusive).
 #[inline]
-fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64> {
+pub(crate) fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64> {
     let e1 = v[1] - v[0];
     let e2 = v[2] - v[0];
     let p = dir.cross(e2);

@@ -207,7 +207,7 @@ pub fn parse_convergence(text: &str) -> Result<Vec<ConvergenceRow>, String> {
 /// The downloadable output files of a job (besides result.json) and their content types.
 fn output_file_type(name: &str) -> Option<&'static str> {
     match name {
-        "preview.png" => return Some("image/png"),
+        "preview.png" | "atlas.png" => return Some("image/png"),
         "scene.glb" => return Some("model/gltf-binary"),
         _ => {}
     }
@@ -223,7 +223,8 @@ fn output_file_type(name: &str) -> Option<&'static str> {
     (page_file_name(page) == name).then_some("image/x-exr")
 }
 
-/// `GET /v1/jobs/{id}/{file}`: `lightmap.exr`, `lightmap-{n}.exr`, `preview.png`, `scene.glb`.
+/// `GET /v1/jobs/{id}/{file}`: `lightmap.exr`, `lightmap-{n}.exr`, `preview.png`, `atlas.png`,
+/// `scene.glb`.
 pub async fn get_file(
     State(state): State<AppState>,
     ApiPath((id, name)): ApiPath<(String, String)>,
@@ -232,7 +233,7 @@ pub async fn get_file(
     let Some(content_type) = output_file_type(&name) else {
         return Err(ApiError::file_not_found(format!(
             "a job has no '{}'; its files are result, convergence, lightmap.exr, \
-             lightmap-{{n}}.exr (n >= 1), preview.png and scene.glb",
+             lightmap-{{n}}.exr (n >= 1), preview.png, atlas.png and scene.glb",
             clip(&name, 100)
         )));
     };
@@ -295,6 +296,7 @@ mod tests {
         assert_eq!(output_file_type("state.json"), None);
         assert_eq!(output_file_type("../x"), None);
         assert_eq!(output_file_type("preview.png"), Some("image/png"));
+        assert_eq!(output_file_type("atlas.png"), Some("image/png"));
     }
 
     #[test]
