@@ -19,7 +19,7 @@
 //! overlapped away), points, lines, skins, morph targets and animations are left out.
 
 use super::atlas::{Atlas, AtlasRect};
-use super::page_file_name;
+use super::{encode_rgb_png, page_file_name, srgb8};
 use crate::domain::{plane_coordinates, Side, Surface};
 use crate::faces::FaceSet;
 use crate::scene::{primitive_triangles, GltfSource, Scene};
@@ -61,17 +61,6 @@ pub fn lightmap_intensity(irradiance_pages: &[Vec<[f32; 4]>]) -> f64 {
     }
 }
 
-/// The sRGB encoding of a linear value in `[0, 1]` (clamped), as an 8-bit value.
-pub fn srgb_encode(x: f64) -> u8 {
-    let x = x.clamp(0.0, 1.0);
-    let e = if x <= 0.0031308 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (e * 255.0 + 0.5) as u8
-}
-
 /// One lightmap page as an 8-bit sRGB PNG: each texel `H / intensity` (irradiance texels in).
 pub fn lightmap_png(
     irradiance: &[[f32; 4]],
@@ -81,18 +70,9 @@ pub fn lightmap_png(
 ) -> std::io::Result<Vec<u8>> {
     let mut data = Vec::with_capacity(irradiance.len() * 3);
     for t in irradiance {
-        data.extend([0, 1, 2].map(|c| srgb_encode(f64::from(t[c]) / intensity)));
+        data.extend([0, 1, 2].map(|c| srgb8((f64::from(t[c]) / intensity) as f32)));
     }
-    let mut out = Vec::new();
-    {
-        let mut enc = png::Encoder::new(&mut out, width, height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let mut w = enc.write_header().map_err(std::io::Error::other)?;
-        w.write_image_data(&data).map_err(std::io::Error::other)?;
-    }
-    Ok(out)
+    encode_rgb_png(&data, width, height)
 }
 
 /// What [`baked_scene_glb`] needs of the solve besides the input glTF.
@@ -344,14 +324,7 @@ fn mime_type(bytes: &[u8], declared: Option<&str>) -> String {
 
 /// A 1 x 1 white PNG standing in for an input image that could not be read.
 fn placeholder_png() -> Vec<u8> {
-    let mut out = Vec::new();
-    let mut enc = png::Encoder::new(&mut out, 1, 1);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    if let Ok(mut w) = enc.write_header() {
-        let _ = w.write_image_data(&[255, 255, 255]);
-    }
-    out
+    encode_rgb_png(&[255, 255, 255], 1, 1).unwrap_or_default()
 }
 
 /// Adds one to every `texCoord >= 1` in `v` (texture infos and `KHR_texture_transform`).
@@ -781,9 +754,9 @@ mod tests {
 
     #[test]
     fn srgb_encoding_matches_the_standard_curve() {
-        assert_eq!(srgb_encode(0.0), 0);
-        assert_eq!(srgb_encode(1.0), 255);
-        assert_eq!(srgb_encode(0.5), 188);
-        assert_eq!(srgb_encode(2.0), 255);
+        assert_eq!(srgb8(0.0), 0);
+        assert_eq!(srgb8(1.0), 255);
+        assert_eq!(srgb8(0.5), 188);
+        assert_eq!(srgb8(2.0), 255);
     }
 }

@@ -322,8 +322,9 @@ fn preview_scale(texels: &[[f32; 4]]) -> f32 {
     }
 }
 
-/// sRGB encoding of a linear value, clamped to `[0, 1]`, as an 8-bit value.
-pub(crate) fn srgb8(x: f32) -> u8 {
+/// sRGB encoding of a linear value, clamped to `[0, 1]`, as an 8-bit value (the PNG pictures and
+/// the baked scene's lightmap pages).
+pub fn srgb8(x: f32) -> u8 {
     let x = x.clamp(0.0, 1.0);
     let e = if x <= 0.0031308 {
         12.92 * x
@@ -333,13 +334,15 @@ pub(crate) fn srgb8(x: f32) -> u8 {
     (e * 255.0 + 0.5) as u8
 }
 
-/// An 8-bit RGB PNG of `data` (row-major from the top, three bytes a pixel).
+/// An 8-bit RGB PNG of `data` (row-major from the top, three bytes a pixel), marked sRGB: every
+/// PNG wavrad writes holds sRGB-encoded values.
 pub(crate) fn encode_rgb_png(data: &[u8], width: u32, height: u32) -> std::io::Result<Vec<u8>> {
     let mut out = Vec::new();
     {
         let mut enc = png::Encoder::new(&mut out, width, height);
         enc.set_color(png::ColorType::Rgb);
         enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
         let mut w = enc.write_header().map_err(std::io::Error::other)?;
         w.write_image_data(data).map_err(std::io::Error::other)?;
     }

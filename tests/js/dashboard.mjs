@@ -92,6 +92,7 @@ async function upload(page, files, parts, fields) {
 const MAGIC = {
   "lightmap.exr": (b) => b.length > 4 && b.readUInt32LE(0) === 20000630,
   "preview.png": (b) => b.subarray(0, 8).equals(Buffer.from([137, 80, 78, 71, 13, 10, 26, 10])),
+  "atlas.png": (b) => b.subarray(0, 8).equals(Buffer.from([137, 80, 78, 71, 13, 10, 26, 10])),
   "scene.glb": (b) => b.subarray(0, 4).toString("latin1") === "glTF",
   result: (b) => { try { return typeof JSON.parse(b.toString("utf8")).stats === "object"; } catch { return false; } },
 };
@@ -156,7 +157,7 @@ try {
   // Its outputs, downloaded through the page (with the token).
   await page.waitForSelector(`${row(first)} img.preview`, { timeout: 20_000 }).catch(() => {});
   report.downloads = [];
-  for (const file of ["result", "lightmap.exr", "preview.png", "scene.glb"]) {
+  for (const file of ["result", "lightmap.exr", "preview.png", "atlas.png", "scene.glb"]) {
     report.downloads.push(await download(page, first, file));
   }
 
