@@ -366,7 +366,7 @@ fn pick_shooter(
 
 /// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
 /// power is updated. A long shot reports from within to `reporter`. Returns false when the time
-/// budget ended within the shot and receivers were left out (`tests/solver.rs`
+/// budget ended within the shot and receivers were left out (`tests/progress.rs`
 /// `the_time_budget_stops_within_a_long_shot`).
 fn shoot(
     ctx: &ShotContext,
