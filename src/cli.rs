@@ -1,4 +1,4 @@
-//! The command line (docs/contract.md, "Command line"): `solve`, `faces`, `serve`.
+//! The command line (docs/contract.md, "Command line"): `solve`, `faces`, `serve`, `bench`.
 //!
 //! Machine output (JSON) goes to stdout only; logs and the progress bar to stderr. Exit codes:
 //! 0 success, 2 bad input or bad options (one-line reason on stderr), 1 internal failure.
@@ -37,6 +37,44 @@ pub enum Command {
     Faces(FacesArgs),
     /// Run the HTTP service.
     Serve(ServeArgs),
+    /// Measure a part of the solver (benches/README.md).
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Occlusion of segments through the solver's own BVH: prints one JSON line
+    /// {"segments", "occluded", "seconds", "per_second", "threads"}; or, with --generate N
+    /// --out FILE, writes N random segments between points on the scene's faces.
+    Visibility(VisibilityArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct VisibilityArgs {
+    /// The scene (.glb or .gltf).
+    pub scene: PathBuf,
+    /// Segments to trace: a JSON array of [ax, ay, az, bx, by, bz].
+    #[arg(
+        long,
+        conflicts_with = "generate",
+        required_unless_present = "generate"
+    )]
+    pub segments: Option<PathBuf>,
+    /// Threads tracing the segments (1: the calling thread alone).
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
+    /// Write N segments between random points on the scene's faces to --out instead.
+    #[arg(long, requires = "out")]
+    pub generate: Option<usize>,
+    /// Where --generate writes its segments.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Seed of --generate (the same scene, N and seed give the same file).
+    #[arg(long, default_value_t = crate::bench::visibility::DEFAULT_SEED)]
+    pub seed: u64,
+    #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
+    pub max_triangles: usize,
 }
 
 #[derive(Args, Debug)]
@@ -225,6 +263,7 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> Exi
         Command::Solve(a) => solve(a, &cli.log_format),
         Command::Faces(a) => faces(a),
         Command::Serve(a) => serve(a),
+        Command::Bench(BenchCommand::Visibility(a)) => bench_visibility(a),
     }
 }
 
@@ -475,6 +514,72 @@ fn check_out_dir(dir: &std::path::Path) -> Result<(), String> {
     std::fs::remove_file(&probe).map_err(fail)
 }
 
+/// `bench visibility`: builds the solver's visibility structure as a solve does (faces, then
+/// `pipeline::build_visibility`), its build times on stderr; then generates segments or traces
+/// them, the measurement as one JSON line on stdout.
+fn bench_visibility(a: VisibilityArgs) -> ExitCode {
+    use crate::bench::visibility::{generate_segments, parse_segments, segments_json, trace};
+    if a.threads == 0 {
+        return bad_input("--threads must be at least 1");
+    }
+    let segments = match &a.segments {
+        None => None,
+        Some(path) => match std::fs::read(path)
+            .map_err(|e| e.to_string())
+            .and_then(|b| parse_segments(&b))
+        {
+            Ok(s) => Some(s),
+            Err(e) => return bad_input(format!("{}: {e}", path.display())),
+        },
+    };
+    let start = std::time::Instant::now();
+    let scene = match load(&a.scene, a.max_triangles) {
+        Ok(s) => s,
+        Err(code) => return code,
+    };
+    let load_seconds = start.elapsed().as_secs_f64();
+    let start = std::time::Instant::now();
+    let faces = crate::faces::merge_planar_faces(&scene);
+    let faces_seconds = start.elapsed().as_secs_f64();
+    if let (Some(n), Some(out)) = (a.generate, &a.out) {
+        let generated = match generate_segments(&faces, n, a.seed) {
+            Ok(s) => s,
+            Err(e) => return bad_input(format!("{}: {e}", a.scene.display())),
+        };
+        if let Err(e) = std::fs::write(out, segments_json(&generated)) {
+            return bad_input(format!("--out {}: {e}", out.display()));
+        }
+        println!(
+            "{}",
+            serde_json::json!({"segments": generated.len(), "seed": a.seed, "out": out})
+        );
+        return ExitCode::SUCCESS;
+    }
+    let Some(segments) = segments else {
+        return bad_input("give --segments FILE, or --generate N --out FILE");
+    };
+    let built = crate::pipeline::build_visibility(&scene, &faces);
+    eprintln!(
+        "wavrad: {} triangles, {} faces ({} bounding faces left out of the BVH, as in a solve), {} \
+         occluders; load {load_seconds:.3} s, faces {faces_seconds:.3} s, bounding faces {:.3} s, \
+         BVH build {:.3} s; end epsilon {:.3e}",
+        scene.triangles.len(),
+        faces.faces.len(),
+        built.bounding_faces,
+        built.visibility.occluder_count(),
+        built.bounding_seconds,
+        built.bvh_seconds,
+        built.visibility.end_epsilon(),
+    );
+    match trace(&built.visibility, &segments, a.threads) {
+        Ok(run) => {
+            println!("{}", serde_json::json!(run));
+            ExitCode::SUCCESS
+        }
+        Err(e) => internal(e),
+    }
+}
+
 fn serve(a: ServeArgs) -> ExitCode {
     let mut config = crate::service::ServiceConfig::new(a.data_dir);
     config.workers = a.workers;
@@ -513,6 +618,8 @@ fn serve(a: ServeArgs) -> ExitCode {
     match runtime.block_on(serve) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => bad_input(e),
+        // Another server holds the data directory: the message names it.
+        Err(e) if e.kind() == std::io::ErrorKind::ResourceBusy => bad_input(e),
         Err(e) if e.kind() == std::io::ErrorKind::AddrInUse => {
             bad_input(format!("cannot listen on {}: {e}", a.addr))
         }

@@ -3,7 +3,7 @@
 //!
 //! Modules in data-flow order; each depends only on those before it (`tests/architecture.rs`
 //! enforces the order, see ARCHITECTURE.md): `scene` -> `faces` -> `domain` -> `solver` ->
-//! `pipeline` -> `output` -> `job` -> `service` -> `cli`; `reference` measures solutions against
+//! `pipeline` -> `output` -> `job` -> `service`, `bench` -> `cli`; `reference` measures solutions against
 //! Monte Carlo references (tests and benches); `shuffle` (the deterministic shuffle several stages
 //! share) and `fsutil` (atomic writes) are utilities any layer may use.
 
@@ -11,6 +11,7 @@
 // iterator chains would hide the formulas.
 #![allow(clippy::needless_range_loop)]
 
+pub mod bench;
 pub mod cli;
 pub mod domain;
 pub mod faces;

@@ -44,21 +44,7 @@ pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
     let faces = merge_planar_faces(scene);
     let domains = build_domains(scene, &faces, mode);
     let diagonal = scene.diagonal();
-    let bounding = bounding_faces(scene, &faces, diagonal);
-    // Faces occlude with their own triangulations: the scene's triangles, some cut along contact
-    // lines, with welded corners. Faces that bound the scene can occlude nothing.
-    let occluders = faces
-        .faces
-        .iter()
-        .zip(&bounding)
-        .filter(|(_, &bounds)| !bounds)
-        .flat_map(|(f, _)| f.triangulation.iter().map(move |t| (*t, f.id.0)));
-    let visibility = Visibility::new(occluders, diagonal);
-    tracing::debug!(
-        bounding = bounding.iter().filter(|&&b| b).count(),
-        faces = faces.faces.len(),
-        "faces left out of the occluders: they bound the scene"
-    );
+    let visibility = build_visibility(scene, &faces).visibility;
     Prepared {
         faces,
         surfaces: domains.surfaces,
@@ -66,6 +52,49 @@ pub fn prepare(scene: &Scene, mode: DomainMode) -> Prepared {
         extended: domains.extended,
         visibility,
         diagonal,
+    }
+}
+
+/// The visibility structure a solve traces, and how it was made.
+pub struct BuiltVisibility {
+    pub visibility: Visibility,
+    /// Faces left out of the BVH because their plane bounds the scene.
+    pub bounding_faces: usize,
+    /// Seconds spent finding them (`bounding_faces`).
+    pub bounding_seconds: f64,
+    /// Seconds spent building the BVH.
+    pub bvh_seconds: f64,
+}
+
+/// The visibility structure of `prepare` (and so of every solve): a BVH over the faces' own
+/// triangulations (the scene's triangles, some cut along contact lines, with welded corners),
+/// less the faces that bound the scene, which can occlude nothing. `wavrad bench visibility`
+/// times this same build.
+pub fn build_visibility(scene: &Scene, faces: &FaceSet) -> BuiltVisibility {
+    let diagonal = scene.diagonal();
+    let start = std::time::Instant::now();
+    let bounding = bounding_faces(scene, faces, diagonal);
+    let bounding_seconds = start.elapsed().as_secs_f64();
+    let occluders = faces
+        .faces
+        .iter()
+        .zip(&bounding)
+        .filter(|(_, &bounds)| !bounds)
+        .flat_map(|(f, _)| f.triangulation.iter().map(move |t| (*t, f.id.0)));
+    let start = std::time::Instant::now();
+    let visibility = Visibility::new(occluders, diagonal);
+    let bvh_seconds = start.elapsed().as_secs_f64();
+    let bounding_faces = bounding.iter().filter(|&&b| b).count();
+    tracing::debug!(
+        bounding = bounding_faces,
+        faces = faces.faces.len(),
+        "faces left out of the occluders: they bound the scene"
+    );
+    BuiltVisibility {
+        visibility,
+        bounding_faces,
+        bounding_seconds,
+        bvh_seconds,
     }
 }
 

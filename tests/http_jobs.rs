@@ -394,3 +394,64 @@ async fn an_idempotency_key_returns_the_job_it_created() {
         .unwrap();
     expect_error(bad, StatusCode::BAD_REQUEST, "bad_idempotency_key").await;
 }
+
+/// An `Idempotency-Key` sent again with another request is refused, 422 `idempotency_key_reused`
+/// with a message saying to use a new key: another scene, or other parameters (even when the
+/// first job is already known); the same request still gets its job, whatever the order of the
+/// query's pairs or a default written out, and another `name` (a label) is the same request.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idempotency_key_reused_with_another_request_is_refused() {
+    let base = start(ServiceConfig::new(data_dir("http-idempotency-reused"))).await;
+    let client = client();
+    let post = |query: &'static str, body: Vec<u8>| {
+        client
+            .post(format!("{base}/v1/jobs?{query}"))
+            .header("content-type", "model/gltf-binary")
+            .header("idempotency-key", "nightly-7")
+            .body(body)
+            .send()
+    };
+    let first = post("order=1&tolerance=0.01", small_scene(0.5))
+        .await
+        .unwrap();
+    assert_eq!(first.status(), StatusCode::ACCEPTED);
+    let first: Value = first.json().await.unwrap();
+
+    let other_body = post("order=1&tolerance=0.01", small_scene(0.6))
+        .await
+        .unwrap();
+    let e = expect_error(
+        other_body,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "idempotency_key_reused",
+    )
+    .await;
+    let message = e["message"].as_str().unwrap();
+    assert!(message.contains("nightly-7"), "{message}");
+    assert!(message.contains(first["id"].as_str().unwrap()), "{message}");
+    assert!(message.contains("new key"), "{message}");
+
+    let other_params = post("order=2&tolerance=0.01", small_scene(0.5))
+        .await
+        .unwrap();
+    expect_error(
+        other_params,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "idempotency_key_reused",
+    )
+    .await;
+
+    // The same request, its pairs in another order, the default domain written out, a name.
+    let same = post(
+        "tolerance=0.01&domain=extended&order=1&name=retry",
+        small_scene(0.5),
+    )
+    .await
+    .unwrap();
+    assert_eq!(same.status(), StatusCode::ACCEPTED);
+    assert_eq!(same.headers()["idempotent-replayed"], "true");
+    let same: Value = same.json().await.unwrap();
+    assert_eq!(same["id"], first["id"]);
+    let list = list_jobs(&client, &base).await;
+    assert_eq!(list["jobs"].as_array().unwrap().len(), 1, "no job was made");
+}

@@ -164,7 +164,60 @@ async fn finished_results_survive_a_restart() {
     let retried =
         job_id(&submit_ok_keyed(&client, &base, "order=1", box_scene(0.5, 1), "k-1").await);
     assert_eq!(retried, id);
+    // So did the request it was made by: the key with another scene is refused.
+    let reused = client
+        .post(format!("{base}/v1/jobs?order=1"))
+        .header("content-type", "model/gltf-binary")
+        .header("idempotency-key", "k-1")
+        .body(box_scene(0.7, 1))
+        .send()
+        .await
+        .unwrap();
+    expect_error(
+        reused,
+        StatusCode::UNPROCESSABLE_ENTITY,
+        "idempotency_key_reused",
+    )
+    .await;
     drop(service);
+}
+
+/// A second `wavrad serve` on a data directory another one holds refuses to start: it exits
+/// nonzero (2) naming the holder's pid and when it started, and touches nothing; after a kill -9
+/// of the holder (the OS drops its lock, no stale lock file counts) a new server starts there.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_second_server_on_one_data_dir_refuses_to_start() {
+    let data = data_dir("restart-lock");
+    let client = client();
+    let first = Service::start(&data, &[]);
+    let pid = first.child.id();
+    let id = job_id(&submit_ok(&client, &first.base, "order=1", box_scene(0.5, 1)).await);
+    let second = Command::new(env!("CARGO_BIN_EXE_wavrad"))
+        .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
+        .arg(&data)
+        .env("RUST_LOG", "warn")
+        .output()
+        .expect("wavrad serve runs");
+    assert_eq!(second.status.code(), Some(2), "{second:?}");
+    assert!(second.stdout.is_empty(), "it never listened: {second:?}");
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(
+        stderr.contains(&format!("process {pid} (started 20")),
+        "{stderr}"
+    );
+    assert!(stderr.contains("--data-dir"), "{stderr}");
+    // The first server is unharmed.
+    get_job(&client, &first.base, &id).await;
+
+    first.kill();
+    assert!(
+        data.join("wavrad.lock").is_file(),
+        "the file stays; its lock does not"
+    );
+    let again = Service::start(&data, &[]);
+    let job = get_job(&client, &again.base, &id).await;
+    assert_eq!(job["id"], id.as_str());
+    drop(again);
 }
 
 /// SIGTERM: the server stops accepting, the running job stops at its next check and is persisted

@@ -10,6 +10,9 @@ use serde::Serialize;
 use std::any::Any;
 use std::borrow::Cow;
 
+/// The code of [`ApiError::idempotency_key_reused`].
+pub const IDEMPOTENCY_KEY_REUSED: &str = "idempotency_key_reused";
+
 /// Largest error body of another layer read back to reuse its text as the message.
 const MAX_FOREIGN_ERROR_BODY: usize = 16 * 1024;
 
@@ -81,6 +84,21 @@ impl ApiError {
     /// 409: the job is not in a state where this is available.
     pub fn conflict(code: &'static str, message: impl Into<String>) -> Self {
         Self::new(StatusCode::CONFLICT, code, message)
+    }
+
+    /// 422 [`IDEMPOTENCY_KEY_REUSED`]: an `Idempotency-Key` sent again with another request (body
+    /// or parameters) than the one that created job `job`.
+    pub fn idempotency_key_reused(key: &str, job: &str) -> Self {
+        Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            IDEMPOTENCY_KEY_REUSED,
+            format!(
+                "the Idempotency-Key '{}' was used for job {job} with another request (a different \
+                 scene, files or parameters); a retry must repeat the request exactly, and a new \
+                 request needs a new key (a fresh UUID)",
+                clip(key, 80)
+            ),
+        )
     }
 
     /// 429 with `Retry-After`.

@@ -172,6 +172,11 @@ pub struct JobRecord {
     pub stop_reason: Option<String>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub idempotency_key: Option<String>,
+    /// SHA-256 (hex) of the keyed request that created the job (`routes::submit`,
+    /// `request_fingerprint`): a reuse of the key with another request is refused. Absent from
+    /// unkeyed jobs and from records written before it existed (a retry then gets the job).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub request_sha256: Option<String>,
 }
 
 /// One job.
@@ -184,6 +189,8 @@ pub struct Job {
     pub params: JobParams,
     /// The `Idempotency-Key` of the POST that created it.
     pub idempotency_key: Option<String>,
+    /// The fingerprint of that POST (`JobRecord::request_sha256`).
+    pub request_sha256: Option<String>,
     /// The scene's name, as shown in the job document (`JobView::name`).
     pub name: Option<String>,
     /// The flag the solver checks (between shots and inside them): stop now.
@@ -216,12 +223,19 @@ impl Job {
             seq,
             params,
             idempotency_key,
+            request_sha256: None,
             name: None,
             stop: AtomicBool::new(false),
             cancel: AtomicBool::new(false),
             status: watch::Sender::new(status),
             persist: Mutex::new(()),
         }
+    }
+
+    /// The job with the fingerprint of the keyed request that created it.
+    pub fn with_request_sha256(mut self, sha256: Option<String>) -> Job {
+        self.request_sha256 = sha256;
+        self
     }
 
     /// The job with its scene's name (already validated: `routes::submit`).
@@ -309,6 +323,7 @@ impl Job {
             error: status.error.clone(),
             stop_reason: status.stop_reason.clone(),
             idempotency_key: self.idempotency_key.clone(),
+            request_sha256: self.request_sha256.clone(),
         }
     }
 

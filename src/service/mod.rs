@@ -10,7 +10,8 @@
 //!   dedicated, niced rayon pool under `catch_unwind`; each job's state lives in a `watch` channel
 //!   that polling and server-sent events both read.
 //! - Store ([`store`]): one directory per job under `data_dir/jobs/`, every write atomic; the job's
-//!   files are on disk before its 202 is sent. [`recovery`] reads them back at start.
+//!   files are on disk before its 202 is sent. [`recovery`] reads them back at start. [`lock`]:
+//!   one server per data directory (an OS lock taken before the store opens, held by the state).
 //! - Shutdown: stop accepting, stop running solves at their next check and persist them as
 //!   `queued`, end event streams, then return.
 //! - [`metrics`]: `/metrics` in Prometheus text.
@@ -20,6 +21,7 @@
 pub(crate) mod error;
 pub(crate) mod extract;
 pub(crate) mod jobs;
+pub(crate) mod lock;
 pub(crate) mod metrics;
 pub(crate) mod recovery;
 pub(crate) mod routes;
@@ -226,6 +228,8 @@ pub struct AppState {
 
 struct Shared {
     config: ServiceConfig,
+    /// The data directory's exclusive lock, held as long as the state lives.
+    _data_dir_lock: lock::DataDirLock,
     store: FileStore,
     jobs: JobBoard,
     upload_permits: Semaphore,
@@ -256,6 +260,8 @@ impl AppState {
                 "AppState::new must be called inside a Tokio runtime",
             ));
         }
+        // Before anything reads or writes the directory: a second server on it stops here.
+        let data_dir_lock = lock::DataDirLock::acquire(&config.data_dir)?;
         let store = FileStore::open(&config.data_dir)?;
         let jobs = JobBoard::new(config.max_queued);
         recovery::recover(&store, &jobs)?;
@@ -267,6 +273,7 @@ impl AppState {
             inner: Arc::new(Shared {
                 jobs,
                 config,
+                _data_dir_lock: data_dir_lock,
                 store,
                 upload_permits: Semaphore::new(max_uploads),
                 in_flight: Arc::new(Semaphore::new(max_in_flight)),

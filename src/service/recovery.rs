@@ -89,6 +89,7 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
     let created = from_unix_millis(created_ms);
     let key = record.as_ref().ok().and_then(|r| r.idempotency_key.clone());
     let name = record.as_ref().ok().and_then(|r| r.name.clone());
+    let sha256 = record.as_ref().ok().and_then(|r| r.request_sha256.clone());
     let fail = |reason: String| {
         JobStatus {
         state: JobState::Failed,
@@ -118,7 +119,9 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
             stop_reason: record.stop_reason,
         };
         let params = params.unwrap_or_default();
-        let job = Job::restore(id.clone(), created, seq, params, status, key).with_name(name);
+        let job = Job::restore(id.clone(), created, seq, params, status, key)
+            .with_name(name)
+            .with_request_sha256(sha256);
         return (job, Outcome::Finished);
     }
     // Queued or running: it runs again from the start if its input is still there.
@@ -141,7 +144,8 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
             tracing::info!(job = %id, was = record.state.as_str(), "queued again after a restart");
             (
                 Job::restore(id.clone(), created, seq, params, JobStatus::queued(), key)
-                    .with_name(name),
+                    .with_name(name)
+                    .with_request_sha256(sha256),
                 Outcome::Requeue,
             )
         }
@@ -156,7 +160,8 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
                     fail(reason),
                     key,
                 )
-                .with_name(name),
+                .with_name(name)
+                .with_request_sha256(sha256),
                 Outcome::Failed,
             )
         }

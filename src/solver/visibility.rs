@@ -79,6 +79,16 @@ impl Visibility {
         }
     }
 
+    /// Number of occluding triangles in the BVH.
+    pub fn occluder_count(&self) -> usize {
+        self.occluders.len()
+    }
+
+    /// The distance from either end of a segment within which hits do not count.
+    pub fn end_epsilon(&self) -> f64 {
+        self.end_epsilon
+    }
+
     /// Number of segment tests done so far.
     pub fn rays_traced(&self) -> u64 {
         self.rays.load(Ordering::Relaxed)

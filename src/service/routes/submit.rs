@@ -37,14 +37,13 @@ pub async fn create_job(
 ) -> Result<Response, ApiError> {
     let (mut params, name) = submit_query(query.as_deref())?;
     params.validate().map_err(ApiError::bad_parameters)?;
+    // The parameters as asked (defaults filled in), before the server's cap: what a retry repeats.
+    let params_asked = params.clone();
     if let Some(cap) = state.config().max_job_seconds {
         let cap = cap as f64;
         params.max_seconds = Some(params.max_seconds.map_or(cap, |s| s.min(cap)));
     }
     let key = idempotency_key(request.headers())?;
-    if let Some(job) = key.as_deref().and_then(|k| state.jobs().by_key(k)) {
-        return Ok(replay(&job));
-    }
     let kind = check_content_type(request.headers())?;
     let max_body = state.config().max_body_bytes;
     if let Some(length) = content_length(request.headers()) {
@@ -52,8 +51,11 @@ pub async fn create_job(
             return Err(too_large(max_body));
         }
     }
-    // Refuse before receiving the body when the queue is already full (checked again on enqueue).
-    if !state.jobs().has_room() {
+    // A retry of a known key is answered from its job, however full the queue; any other
+    // submission is refused before its body is received when the queue is already full
+    // (checked again on enqueue).
+    let known = key.as_deref().and_then(|k| state.jobs().by_key(k));
+    if known.is_none() && !state.jobs().has_room() {
         return Err(queue_full(&state));
     }
     let _permit = state
@@ -65,6 +67,22 @@ pub async fn create_job(
         BodyKind::Scene => (read_body(request, max_body).await?, BTreeMap::new(), None),
         BodyKind::Multipart => read_multipart(request, max_body).await?,
     };
+    // Hashing a large upload takes a while: off the async threads.
+    let (fingerprint, parts) = match key {
+        None => (None, parts),
+        Some(_) => {
+            let hashed = body.clone();
+            tokio::task::spawn_blocking(move || {
+                let fingerprint = request_fingerprint(&params_asked, &hashed, &parts);
+                (Some(fingerprint), parts)
+            })
+            .await
+            .map_err(|e| ApiError::internal("hashing the request failed", e))?
+        }
+    };
+    if let (Some(job), Some(fingerprint)) = (&known, &fingerprint) {
+        return replay_or_refuse(job, fingerprint);
+    }
     let name = name.or_else(|| file_name.as_deref().and_then(name_of_file));
 
     let max_triangles = state.config().max_triangles;
@@ -93,8 +111,11 @@ pub async fn create_job(
         Some(_) => Some(state.keyed_submissions().lock().await),
         None => None,
     };
-    if let Some(job) = key.as_deref().and_then(|k| state.jobs().by_key(k)) {
-        return Ok(replay(&job));
+    if let (Some(job), Some(fingerprint)) = (
+        key.as_deref().and_then(|k| state.jobs().by_key(k)),
+        &fingerprint,
+    ) {
+        return replay_or_refuse(&job, fingerprint);
     }
     let created = SystemTime::now();
     let store = state.store().clone();
@@ -111,7 +132,8 @@ pub async fn create_job(
             JobStatus::queued(),
             key,
         )
-        .with_name(name),
+        .with_name(name)
+        .with_request_sha256(fingerprint),
     );
     let store = state.store().clone();
     let stored = job.clone();
@@ -239,6 +261,50 @@ fn accepted(job: &Job) -> Response {
         response.headers_mut().insert(header::LOCATION, location);
     }
     response
+}
+
+/// A keyed POST whose key names `job`: the job when the request is the one that created it (same
+/// fingerprint, or a job recorded before fingerprints were kept), else 422
+/// `idempotency_key_reused` (tests/http_jobs.rs, `an_idempotency_key_reused_with_another_request_is_refused`).
+fn replay_or_refuse(job: &Job, fingerprint: &str) -> Result<Response, ApiError> {
+    match &job.request_sha256 {
+        Some(recorded) if recorded != fingerprint => {
+            let key = job.idempotency_key.as_deref().unwrap_or("");
+            Err(ApiError::idempotency_key_reused(key, job.id.as_str()))
+        }
+        _ => Ok(replay(job)),
+    }
+}
+
+/// The fingerprint of a keyed submission, SHA-256 in hex over what makes the job's solve: the
+/// parameters as asked (defaults filled in, so `order=2` and no `order` are one request, and the
+/// order of the query's pairs does not count), the scene's bytes, and a multipart upload's
+/// parts by URI (so a multipart boundary does not count). The scene's `name` is a label and
+/// does not count (a retry may name it otherwise: tests/service_restart.rs,
+/// `finished_results_survive_a_restart`). Each piece is length-prefixed, so no two different
+/// requests share a byte stream.
+fn request_fingerprint(
+    params: &JobParams,
+    scene: &[u8],
+    parts: &BTreeMap<String, Vec<u8>>,
+) -> String {
+    use sha2::{Digest, Sha256};
+    let mut hash = Sha256::new();
+    let mut piece = |bytes: &[u8]| {
+        hash.update((bytes.len() as u64).to_le_bytes());
+        hash.update(bytes);
+    };
+    piece(b"wavrad-submit-v1");
+    // Serialising plain numbers, booleans and enums cannot fail; an empty piece would do anyway.
+    piece(&serde_json::to_vec(params).unwrap_or_default());
+    piece(scene);
+    piece(&(parts.len() as u64).to_le_bytes());
+    for (uri, bytes) in parts {
+        piece(uri.as_bytes());
+        piece(bytes);
+    }
+    let digest = hash.finalize();
+    digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// The answer to a retried keyed POST: the job it created, as the first answer had it.
