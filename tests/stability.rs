@@ -715,7 +715,6 @@ impl ShadowLimit {
 /// high, its shadow ending 1.2 m behind it (a gentle kink); a 2 cm curb, its shadow ending 8 cm
 /// behind it (a sharp one).
 #[test]
-#[ignore = "fails today: 1.13 % low at a 2 cm curb's shadow limit (30 cm box: 0.44 %); issue 19 shadow limits"]
 fn a_floor_point_at_the_limit_of_a_box_shadow_under_a_large_emitting_wall() {
     let cases = [
         (
