@@ -543,20 +543,7 @@ fn a_gently_curved_sheet_does_not_creep_into_one_face() {
 }
 
 fn scene_of(tris: &[[DVec3; 3]]) -> Scene {
-    let triangles = tris
-        .iter()
-        .enumerate()
-        .map(|(i, v)| Triangle {
-            vertices: *v,
-            material: 0,
-            source: TriangleSource {
-                mesh: 0,
-                primitive: 0,
-                triangle: i as u32,
-            },
-        })
-        .collect();
-    Scene::new(triangles, vec![Material::gltf_default()], vec![], vec![])
+    Scene::of_triangles(tris)
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -27,15 +27,7 @@ fn scene_of(tris: &[([DVec3; 3], u32)]) -> Scene {
     let triangles = tris
         .iter()
         .enumerate()
-        .map(|(i, &(v, material))| Triangle {
-            vertices: v,
-            material,
-            source: TriangleSource {
-                mesh: 0,
-                primitive: 0,
-                triangle: i as u32,
-            },
-        })
+        .map(|(i, &(v, material))| Triangle::numbered(v, material, i as u32))
         .collect();
     let mut other = Material::gltf_default();
     other.name = "other".into();

@@ -546,20 +546,7 @@ mod tests {
     use crate::scene::{Material, Triangle, TriangleSource};
 
     fn scene_of(tris: &[[DVec3; 3]]) -> Scene {
-        let triangles = tris
-            .iter()
-            .enumerate()
-            .map(|(i, v)| Triangle {
-                vertices: *v,
-                material: 0,
-                source: TriangleSource {
-                    mesh: 0,
-                    primitive: 0,
-                    triangle: i as u32,
-                },
-            })
-            .collect();
-        Scene::new(triangles, vec![Material::gltf_default()], vec![], vec![])
+        Scene::of_triangles(tris)
     }
 
     fn p(x: f64, y: f64) -> DVec3 {

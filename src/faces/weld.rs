@@ -94,18 +94,9 @@ pub fn weld(triangles: &[Triangle], tolerance_m: f64) -> Welded {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::TriangleSource;
 
     fn tri(a: DVec3, b: DVec3, c: DVec3) -> Triangle {
-        Triangle {
-            vertices: [a, b, c],
-            material: 0,
-            source: TriangleSource {
-                mesh: 0,
-                primitive: 0,
-                triangle: 0,
-            },
-        }
+        Triangle::numbered([a, b, c], 0, 0)
     }
 
     #[test]

@@ -122,6 +122,20 @@ pub struct TriangleSource {
 }
 
 impl Triangle {
+    /// A triangle of `material` with the place `index` of the first mesh's first primitive: a
+    /// scene built in code (tests, generated twins) has no other place to name.
+    pub fn numbered(vertices: [DVec3; 3], material: u32, index: u32) -> Triangle {
+        Triangle {
+            vertices,
+            material,
+            source: TriangleSource {
+                mesh: 0,
+                primitive: 0,
+                triangle: index,
+            },
+        }
+    }
+
     /// Unnormalised normal: `(b - a) x (c - a)`, length twice the area.
     pub fn cross(&self) -> DVec3 {
         let [a, b, c] = self.vertices;
@@ -272,6 +286,15 @@ pub struct MeshInstance {
 }
 
 impl Scene {
+    /// A scene of triangles of glTF's default material, numbered in order, no lights or camera.
+    pub fn of_triangles(tris: &[[DVec3; 3]]) -> Scene {
+        let triangles = (0u32..)
+            .zip(tris)
+            .map(|(i, &v)| Triangle::numbered(v, 0, i))
+            .collect();
+        Scene::new(triangles, vec![Material::gltf_default()], vec![], vec![])
+    }
+
     /// Builds a scene from parts, computing bounds. Used by tests and by the importer.
     pub fn new(
         triangles: Vec<Triangle>,

@@ -58,6 +58,13 @@ pub const DEFAULT_TOLERANCE: f64 = 2e-6;
 pub const MAX_DEPTH: u8 = 9;
 /// Elements are not split below this edge length, relative to the scene diagonal.
 pub const MIN_EDGE_REL: f64 = 1e-3;
+/// In a direct shot, a receiver node whose links' sum deviates from its projection by more than
+/// this fraction of the sum's brightest point is judged against a threshold down to
+/// [`DIRECT_DETAIL_TIGHTENING`] times lower (`node_sums.rs`): sharp shadow limits are refined
+/// where they fall, without a lower tolerance everywhere.
+pub const DETAIL_REL: f64 = 0.01;
+/// How much lower than the tolerance's threshold the detail of direct light may be refined to.
+pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
 

@@ -53,6 +53,11 @@ pub(super) struct ShotContext<'a> {
     pub visibility: &'a Visibility,
     /// Absolute error threshold, in W (sum over channels).
     pub threshold: f64,
+    /// The lowest threshold the node-sum check holds a node to where its light's detail is not
+    /// within [`DETAIL_REL`](super::DETAIL_REL) of its brightest point (`node_sums.rs`):
+    /// `threshold / DIRECT_DETAIL_TIGHTENING` in direct shots (sharp shadow limits), `threshold`
+    /// in the others.
+    pub detail_threshold: f64,
     pub min_edge: f64,
     pub quantity: Quantity,
     pub links: &'a AtomicU64,

@@ -18,7 +18,10 @@ use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
 use super::source::LightShot;
 use super::visibility::Visibility;
-use super::{mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason, MIN_EDGE_REL};
+use super::{
+    mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason,
+    DIRECT_DETAIL_TIGHTENING, MIN_EDGE_REL,
+};
 use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
 use rayon::prelude::*;
@@ -73,6 +76,7 @@ pub fn solve(
         node_sums: false,
         visibility,
         threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
+        detail_threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
         min_edge: MIN_EDGE_REL * diagonal,
         quantity: params.quantity,
         links: &counters.links,
@@ -377,6 +381,14 @@ fn shoot(
     unshot: &mut [f64],
     reporter: &mut Reporter,
 ) -> bool {
+    let ctx = &ShotContext {
+        detail_threshold: if direct {
+            ctx.threshold / DIRECT_DETAIL_TIGHTENING
+        } else {
+            ctx.threshold
+        },
+        ..*ctx
+    };
     let roots = ctx.roots;
     let sroot = &roots[shooter];
     let n = ctx.bases.of(sroot.shape).len();

@@ -129,6 +129,12 @@ pub(super) struct NodeSum {
 }
 
 impl NodeSum {
+    /// The largest value `deviation` gives the sum's point values against no light at all: the
+    /// node's brightest point, in the deviation's own weighting.
+    pub fn peak_value(&self, deviation: impl Fn(&[Rgb], &[Rgb; MAX_FUNCTIONS]) -> f64) -> f64 {
+        deviation(&self.e, &[[0.0; 3]; MAX_FUNCTIONS])
+    }
+
     pub fn link_count(&self) -> usize {
         self.links.len()
     }
