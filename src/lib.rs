@@ -4,13 +4,15 @@
 //! Modules in data-flow order; each depends only on those before it (`tests/architecture.rs`
 //! enforces the order, see ARCHITECTURE.md): `scene` -> `faces` -> `domain` -> `solver` ->
 //! `pipeline` -> `output` -> `job` -> `service` -> `cli`; `reference` measures solutions against
-//! Monte Carlo references (tests and benches); `shuffle` (the deterministic shuffle several stages
+//! Monte Carlo references and CIE cases (tests and benches); `bench` holds the benchmarks the CLI
+//! runs (`wavrad bench sweep`); `shuffle` (the deterministic shuffle several stages
 //! share) and `fsutil` (atomic writes) are utilities any layer may use.
 
 // Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;
 // iterator chains would hide the formulas.
 #![allow(clippy::needless_range_loop)]
 
+pub mod bench;
 pub mod cli;
 pub mod domain;
 pub mod faces;

@@ -47,6 +47,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("reference", 7),
     ("job", 7),
     ("service", 8),
+    ("bench", 8),
     ("cli", 9),
 ];
 
