@@ -1,4 +1,5 @@
-//! The command line (docs/contract.md, "Command line"): `solve`, `faces`, `serve`, `bench`.
+//! The command line (docs/contract.md, "Command line"): `solve`, `faces`, `serve`, `bench`
+//! (`visibility`, `sweep`).
 //!
 //! Machine output (JSON) goes to stdout only; logs and the progress bar to stderr. Exit codes:
 //! 0 success, 2 bad input or bad options (one-line reason on stderr), 1 internal failure.
@@ -37,7 +38,8 @@ pub enum Command {
     Faces(FacesArgs),
     /// Run the HTTP service.
     Serve(ServeArgs),
-    /// Measure a part of the solver (benches/README.md).
+    /// Benchmarks: measure a part of the solver, or its speed against its accuracy
+    /// (benches/README.md).
     #[command(subcommand)]
     Bench(BenchCommand),
 }
@@ -48,6 +50,9 @@ pub enum BenchCommand {
     /// {"segments", "occluded", "seconds", "per_second", "threads"}; or, with --generate N
     /// --out FILE, writes N random segments between points on the scene's faces.
     Visibility(VisibilityArgs),
+    /// Speed against accuracy: solve data sets over tolerance x order x domain mode, each solve in
+    /// its own process; writes bench.csv, ratios.csv and bench.svg.
+    Sweep(SweepArgs),
 }
 
 #[derive(Args, Debug)]
@@ -75,6 +80,36 @@ pub struct VisibilityArgs {
     pub seed: u64,
     #[arg(long, env = "WAVRAD_MAX_TRIANGLES", default_value_t = DEFAULT_MAX_TRIANGLES)]
     pub max_triangles: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct SweepArgs {
+    /// Data sets: folders with reference.json or expected.json, or names under
+    /// tests/data/reference/ or tests/data/cie171/ (".glb" dropped). Default: cornell_box,
+    /// 5.3_area_source, kenney_building_small_c_lit, redeclipse_dutility_lit.
+    pub scenes: Vec<String>,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Orders to sweep, e.g. 1,2 (default: each scene's grid).
+    #[arg(long, value_delimiter = ',')]
+    pub orders: Option<Vec<usize>>,
+    /// Tolerances to sweep, e.g. 1e-4,1e-5 (default: each scene's grid).
+    #[arg(long, value_delimiter = ',')]
+    pub tolerances: Option<Vec<f64>>,
+    /// Domain modes, e.g. extended,tessellated (default: both).
+    #[arg(long, value_delimiter = ',')]
+    pub modes: Option<Vec<String>>,
+    /// Cap on one solve's seconds; a capped solve's tighter tolerances are left out.
+    #[arg(long, default_value_t = crate::bench::sweep::DEFAULT_MAX_SECONDS)]
+    pub max_seconds: f64,
+    /// The wavrad repository (for tests/data). Default: the current directory when it has
+    /// tests/data, else the source tree this binary was built from.
+    #[arg(long)]
+    pub repo: Option<PathBuf>,
+    /// Read back the solves already in DIR/runs/ (an interrupted sweep) instead of running them.
+    #[arg(long)]
+    pub resume: bool,
 }
 
 #[derive(Args, Debug)]
@@ -264,6 +299,47 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> Exi
         Command::Faces(a) => faces(a),
         Command::Serve(a) => serve(a),
         Command::Bench(BenchCommand::Visibility(a)) => bench_visibility(a),
+        Command::Bench(BenchCommand::Sweep(a)) => bench_sweep(a),
+    }
+}
+
+fn bench_sweep(a: SweepArgs) -> ExitCode {
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => return internal(format!("the wavrad binary: {e}")),
+    };
+    let repo = a.repo.unwrap_or_else(|| {
+        let here = PathBuf::from(".");
+        if here.join("tests/data").is_dir() {
+            here
+        } else {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        }
+    });
+    let options = crate::bench::sweep::SweepOptions {
+        scenes: a.scenes,
+        out: a.out,
+        orders: a.orders,
+        tolerances: a.tolerances,
+        modes: a.modes,
+        max_seconds: a.max_seconds,
+        exe,
+        repo,
+        resume: a.resume,
+    };
+    let start = std::time::Instant::now();
+    match crate::bench::sweep::run(&options, &mut |line| println!("{line}")) {
+        Ok(report) => {
+            print!("{}", crate::bench::sweep::summary(&report));
+            println!(
+                "{} solves in {:.0} s; wrote bench.csv, ratios.csv and bench.svg in {}",
+                report.rows.len(),
+                start.elapsed().as_secs_f64(),
+                options.out.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => bad_input(e),
     }
 }
 

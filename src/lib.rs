@@ -3,8 +3,9 @@
 //!
 //! Modules in data-flow order; each depends only on those before it (`tests/architecture.rs`
 //! enforces the order, see ARCHITECTURE.md): `scene` -> `faces` -> `domain` -> `solver` ->
-//! `pipeline` -> `output` -> `job` -> `service`, `bench` -> `cli`; `reference` measures solutions against
-//! Monte Carlo references (tests and benches); `shuffle` (the deterministic shuffle several stages
+//! `pipeline` -> `output` -> `job` -> `service`, `bench` -> `cli`; `reference` measures solutions
+//! against Monte Carlo references and CIE cases (tests and benches); `bench` holds the benchmarks
+//! the CLI runs (`wavrad bench visibility`, `wavrad bench sweep`); `shuffle` (the deterministic shuffle several stages
 //! share) and `fsutil` (atomic writes) are utilities any layer may use.
 
 // Numerical kernels index several parallel arrays (basis functions x colour channels) in one loop;

@@ -1,9 +1,13 @@
-//! `wavrad bench`: measurements of the solver's parts from the command line, for
-//! `benches/README.md` and `docs/performance-notes.md`.
+//! `wavrad bench`: measurements from the command line, for `benches/README.md`, the README's
+//! chart and `docs/performance-notes.md`: [`sweep`] (issue 19: the speed-accuracy sweep over
+//! tolerance x order x domain mode) and its [`chart`]; [`visibility`] (segment occlusion through
+//! the solver's own BVH, against a brute-force count and an outside ray tracer).
 //!
-//! Owns [`visibility`] (segment occlusion through the solver's own BVH, against a brute-force
-//! count and an outside ray tracer). Invariants: a benchmark measures the code a solve runs (it
-//! builds its structures with the pipeline's own functions), and its machine output is one JSON
-//! line on stdout.
+//! Invariants: a benchmark measures the code a solve runs (each sweep solve a `wavrad solve`
+//! process; the visibility bench builds its BVH with the pipeline's own function) and never
+//! changes a solution; machine output is one JSON line (visibility) or files (sweep). It sits
+//! above `reference`, `pipeline` and `job` and below `cli` (`tests/architecture.rs`).
 
+pub mod chart;
+pub mod sweep;
 pub mod visibility;
