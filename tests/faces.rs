@@ -9,7 +9,7 @@ use wavrad::faces::{
     merge_planar_faces, triangulate_face, triangulate_polygon, validate_faces, FaceKind, FaceSet,
 };
 use wavrad::scene::gltf_writer::{glb_from_parts, SceneBuilder};
-use wavrad::scene::{load_scene, ExternalFiles, Material, Scene, Triangle, TriangleSource};
+use wavrad::scene::{load_scene, ExternalFiles, Scene};
 
 mod common;
 use common::faces::{merged, total_area};
