@@ -83,6 +83,20 @@ impl ApiError {
         Self::new(StatusCode::CONFLICT, code, message)
     }
 
+    /// 422 for an `Idempotency-Key` already used by a request with another body or other
+    /// parameters (a retry must repeat the request exactly; a new job needs a new key).
+    pub fn idempotency_key_reused(key: &str) -> Self {
+        Self::new(
+            StatusCode::UNPROCESSABLE_ENTITY,
+            "idempotency_key_reused",
+            format!(
+                "the Idempotency-Key '{}' was already used for a different request (another body \
+                 or other parameters); a retry must send the same request, a new job needs a new key",
+                clip(key, 80)
+            ),
+        )
+    }
+
     /// 429 with `Retry-After`.
     pub fn queue_full(max_queued: usize, retry_after: u64) -> Self {
         ApiError {
