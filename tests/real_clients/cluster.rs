@@ -268,12 +268,12 @@ impl Cluster {
             replicas: Vec::new(),
         };
         for _ in 0..replicas {
-            cluster.add_replica(lease_seconds);
+            cluster.add_replica(lease_seconds, &[]);
         }
         Some(cluster)
     }
 
-    fn add_replica(&mut self, lease_seconds: u64) {
+    fn add_replica(&mut self, lease_seconds: u64, extra: &[&str]) {
         let n = self.replicas.len();
         let mut child = Command::new(env!("CARGO_BIN_EXE_wavrad"))
             .args(["serve", "--addr", "127.0.0.1:0", "--data-dir"])
@@ -281,6 +281,7 @@ impl Cluster {
             .args(["--database-url", &self.pg.url()])
             .args(["--object-store", &format!("s3://{BUCKET}/test")])
             .args(["--lease-seconds", &lease_seconds.to_string()])
+            .args(extra)
             .env("AWS_ENDPOINT_URL", self.weed.endpoint())
             .env("AWS_ACCESS_KEY_ID", "wavrad")
             .env("AWS_SECRET_ACCESS_KEY", "wavrad")
@@ -788,4 +789,164 @@ async fn replicas_reconnect_after_postgresql_restarts_and_lose_nothing() {
     )
     .await;
     assert_eq!(j["state"], "succeeded", "{j}");
+}
+
+fn signal(replica: &Replica, signal: libc::c_int) {
+    // SAFETY: kill only reads its arguments; the pid is the test's own child.
+    let rc = unsafe { libc::kill(replica.pid() as libc::pid_t, signal) };
+    assert_eq!(rc, 0, "signal {signal} to replica {}", replica.pid());
+}
+
+/// Fencing: a replica paused past its lease (SIGSTOP) loses the job to another replica; resumed,
+/// its writes are refused, it stops and discards its outputs, and only the new attempt's results
+/// are served.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_replica_that_lost_its_lease_cannot_overwrite_the_new_attempt() {
+    let _turn = TURN.lock().await;
+    let Some(cluster) = Cluster::start("fencing", 2, 2).await else {
+        return;
+    };
+    let http = client();
+    let id = submit_ok(
+        &http,
+        cluster.base(0),
+        "order=1&max_seconds=5",
+        never_converging_scene(),
+    )
+    .await;
+    wait_state(
+        &http,
+        cluster.base(0),
+        &id,
+        &["running"],
+        Duration::from_secs(60),
+    )
+    .await;
+    let db = cluster.pg.client().await;
+    let first = runner_of(&cluster, &db, &id).await;
+    let other = cluster.base(first + 1).to_string();
+    signal(&cluster.replicas[first], libc::SIGSTOP);
+    let start = Instant::now();
+    loop {
+        let j = job(&http, &other, &id).await;
+        if j["attempts"] == 2 && j["state"] == "running" {
+            break;
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(30),
+            "never claimed again: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(runner_of(&cluster, &db, &id).await, (first + 1) % 2);
+    // The paused replica wakes up while the new attempt solves.
+    signal(&cluster.replicas[first], libc::SIGCONT);
+    let done = wait_state(
+        &http,
+        &other,
+        &id,
+        &["succeeded", "failed"],
+        Duration::from_secs(60),
+    )
+    .await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["attempts"], 2, "{done}");
+    let row = db
+        .query_one("SELECT result_attempt FROM jobs WHERE id = $1", &[&id])
+        .await
+        .unwrap();
+    assert_eq!(row.get::<_, Option<i32>>(0), Some(2));
+    let outcomes: Vec<(i32, Option<String>)> = db
+        .query(
+            "SELECT attempt, outcome FROM job_attempts WHERE job_id = $1 ORDER BY attempt",
+            &[&id],
+        )
+        .await
+        .unwrap()
+        .iter()
+        .map(|r| (r.get(0), r.get(1)))
+        .collect();
+    assert_eq!(
+        outcomes,
+        vec![
+            (1, Some("lease_expired".to_string())),
+            (2, Some("succeeded".to_string()))
+        ]
+    );
+    // The resumed replica saw its lease gone (a refused heartbeat or finish).
+    let start = Instant::now();
+    loop {
+        let metrics = http
+            .get(format!("{}/metrics", cluster.base(first)))
+            .send()
+            .await
+            .unwrap()
+            .text()
+            .await
+            .unwrap();
+        if metrics.contains("wavrad_cluster_lost_leases_total 1") {
+            break;
+        }
+        assert!(start.elapsed() < Duration::from_secs(30), "{metrics}");
+        tokio::time::sleep(Duration::from_millis(200)).await;
+    }
+    for r in 0..2 {
+        let result = http
+            .get(format!("{}/v1/jobs/{id}/result", cluster.base(r)))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(result.status(), StatusCode::OK);
+    }
+}
+
+/// A job whose replicas keep dying is failed with the reason after `--max-attempts` claims.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_job_is_failed_after_max_attempts_claims_that_did_not_finish() {
+    let _turn = TURN.lock().await;
+    let Some(mut cluster) = Cluster::start("max-attempts", 0, 2).await else {
+        return;
+    };
+    let http = client();
+    cluster.add_replica(2, &["--max-attempts", "2"]);
+    let id = submit_ok(
+        &http,
+        cluster.base(0),
+        "order=1&max_seconds=60",
+        never_converging_scene(),
+    )
+    .await;
+    for attempt in 1..=2 {
+        let start = Instant::now();
+        loop {
+            let j = job(&http, &cluster.replicas.last().unwrap().base, &id).await;
+            if j["state"] == "running" && j["attempts"] == attempt {
+                break;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(60),
+                "attempt {attempt}: {j}"
+            );
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+        let last = cluster.replicas.len() - 1;
+        cluster.replicas[last].child.kill().unwrap();
+        let _ = cluster.replicas[last].child.wait();
+        cluster.add_replica(2, &["--max-attempts", "2"]);
+    }
+    let base = cluster.replicas.last().unwrap().base.clone();
+    let failed = wait_state(
+        &http,
+        &base,
+        &id,
+        &["failed", "succeeded"],
+        Duration::from_secs(60),
+    )
+    .await;
+    assert_eq!(failed["state"], "failed", "{failed}");
+    assert_eq!(failed["error"]["code"], "attempts_exhausted", "{failed}");
+    assert_eq!(failed["attempts"], 2, "{failed}");
+    // Never claimed again.
+    tokio::time::sleep(Duration::from_secs(3)).await;
+    assert_eq!(job(&http, &base, &id).await["attempts"], 2);
 }
