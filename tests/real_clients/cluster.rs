@@ -601,6 +601,13 @@ async fn a_cancel_sent_to_one_replica_stops_the_job_running_on_another_within_tw
         running["progress"]["iterations"].as_u64().unwrap() > 0,
         "{running}"
     );
+    // The event stream of the other replica follows the row.
+    let mut events = http
+        .get(format!("{other}/v1/jobs/{id}/events"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(events.status(), StatusCode::OK);
     let start = Instant::now();
     let response = http
         .delete(format!("{other}/v1/jobs/{id}"))
@@ -627,6 +634,17 @@ async fn a_cancel_sent_to_one_replica_stops_the_job_running_on_another_within_tw
         "cancel on replica {} stopped the solve on replica {runner} in {took:?}",
         (runner + 1) % 2
     );
+    let mut text = String::new();
+    while !text.contains("event: done") {
+        let chunk = tokio::time::timeout(Duration::from_secs(10), events.chunk())
+            .await
+            .expect("the event stream moves")
+            .unwrap()
+            .expect("the stream ends after done");
+        text.push_str(&String::from_utf8_lossy(&chunk));
+    }
+    assert!(text.starts_with("event: progress"), "{text}");
+    assert!(text.contains("\"state\":\"cancelled\""), "{text}");
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
