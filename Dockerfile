@@ -1,11 +1,14 @@
 # wavrad service image: build with the same command the README uses, run `wavrad serve`.
 # Build:  docker build -t wavrad .
 # Run:    docker run -p 8080:8080 -v wavrad-data:/data wavrad
+# Cluster: docker-compose.yml runs two replicas on PostgreSQL and SeaweedFS (README, "Scaling out").
 FROM rust:1.95-bookworm AS build
 WORKDIR /src
 COPY Cargo.toml Cargo.lock ./
 COPY src ./src
 COPY api ./api
+# The database migrations of cluster mode, embedded in the binary (src/service/cluster/db.rs).
+COPY migrations ./migrations
 COPY scenes ./scenes
 # Cargo.toml declares the benches, so their sources must be present for the manifest to load
 # (only the binary is built). Tests and examples are not needed.

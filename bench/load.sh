@@ -3,6 +3,10 @@
 #
 #   bench/load.sh                      # builds the release binary if needed (honours CARGO_TARGET_DIR)
 #   WAVRAD_BIN=target/debug/wavrad bench/load.sh
+#   REPLICAS=2 WAVRAD_DATABASE_URL=postgres://... WAVRAD_OBJECT_STORE=s3://bucket/bench bench/load.sh
+#       # cluster mode: two replicas on the same database and object store (AWS_* variables for
+#       # S3; use a fresh database or prefix); the solve runs on one of them, the GETs go to the
+#       # second replica and the POSTs to the first, and the same table is printed.
 #
 # 1. starts the server on a free port with a fresh data dir (--max-queued $MAX_QUEUED);
 # 2. submits one long solve (the bundled Kenney scene at order 3, small tolerance, 120 s budget)
@@ -21,15 +25,30 @@ SMALL_SCENE=${SMALL_SCENE:-tests/data/analytic/furnace.glb}
 command -v wrk >/dev/null || { echo "wrk is missing: apt-get install -y wrk" >&2; exit 2; }
 [ -x "$BIN" ] || cargo build --release --locked
 
+REPLICAS=${REPLICAS:-1}
+if [ "$REPLICAS" -gt 1 ] && { [ -z "${WAVRAD_DATABASE_URL:-}" ] || [ -z "${WAVRAD_OBJECT_STORE:-}" ]; }; then
+  echo "REPLICAS=$REPLICAS needs WAVRAD_DATABASE_URL and WAVRAD_OBJECT_STORE (cluster mode)" >&2
+  exit 2
+fi
+[ "$REPLICAS" -gt 1 ] || unset WAVRAD_DATABASE_URL WAVRAD_OBJECT_STORE
+
 DATA=$(mktemp -d)
-"$BIN" serve --addr 127.0.0.1:0 --data-dir "$DATA/data" --max-queued "$MAX_QUEUED" \
-    >"$DATA/stdout" 2>"$DATA/server.log" &
-PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; rm -rf "$DATA"' EXIT
-for _ in $(seq 100); do [ -s "$DATA/stdout" ] && break; sleep 0.1; done
-ADDR=$(sed -n 's/.*"listening":"\([^"]*\)".*/\1/p' "$DATA/stdout")
-BASE="http://$ADDR"
-echo "server: $BASE ($(nproc) cores)"
+PIDS=()
+trap 'for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null; wait "$p" 2>/dev/null; done; rm -rf "$DATA"' EXIT
+BASES=()
+for r in $(seq "$REPLICAS"); do
+  "$BIN" serve --addr 127.0.0.1:0 --data-dir "$DATA/data-$r" --max-queued "$MAX_QUEUED" \
+      >"$DATA/stdout-$r" 2>"$DATA/server-$r.log" &
+  PIDS+=($!)
+  for _ in $(seq 100); do [ -s "$DATA/stdout-$r" ] && break; sleep 0.1; done
+  ADDR=$(sed -n 's/.*"listening":"\([^"]*\)".*/\1/p' "$DATA/stdout-$r")
+  [ -n "$ADDR" ] || { echo "replica $r did not start:" >&2; cat "$DATA/server-$r.log" >&2; exit 1; }
+  BASES+=("http://$ADDR")
+done
+BASE=${BASES[0]}
+# The polling goes to the last replica (in cluster mode, one that may not run the solve).
+READ_BASE=${BASES[$((REPLICAS - 1))]}
+echo "server: ${BASES[*]} ($(nproc) cores)"
 
 state() { curl -s "$BASE/v1/jobs/$1" | sed -n 's/.*"state":"\([a-z]*\)".*/\1/p'; }
 ID=$(curl -s -X POST -H 'Content-Type: model/gltf-binary' --data-binary @"$LONG_SCENE" \
@@ -41,7 +60,7 @@ sleep 1
 echo "solve $ID running: $(curl -s "$BASE/v1/jobs/$ID" | sed -n 's/.*"progress":\({[^}]*}\).*/\1/p')"
 
 echo "--- GET /v1/jobs/{id}, 64 connections, ${DURATION} s, while the solve runs"
-wrk -t2 -c64 -d"${DURATION}s" --latency "$BASE/v1/jobs/$ID" >"$DATA/get.txt"
+wrk -t2 -c64 -d"${DURATION}s" --latency "$READ_BASE/v1/jobs/$ID" >"$DATA/get.txt"
 grep -E "Requests/sec|^ +99%|^ +50%|Non-2xx|Socket errors" "$DATA/get.txt" | sed 's/^ */  /'
 echo "  the solve after polling: $(state "$ID")"
 
@@ -51,4 +70,6 @@ grep -E "^POST|Socket errors" "$DATA/post.txt" | sed 's/^ */  /'
 echo "  the solve after the submissions: $(state "$ID")"
 
 echo "--- the solve now: $(state "$ID"), $(curl -s "$BASE/v1/jobs/$ID" | sed -n 's/.*"progress":\({[^}]*}\).*/\1/p')"
-curl -s "$BASE/metrics" | grep -E '^wavrad_(queue_depth|running_shots) '
+for b in "${BASES[@]}"; do
+  curl -s "$b/metrics" | grep -E '^wavrad_(queue_depth|running_shots|cluster_claims_total|cluster_running) '
+done

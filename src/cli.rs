@@ -257,6 +257,20 @@ pub struct ServeArgs {
     /// Probe points accepted in one probe request; beyond it 400.
     #[arg(long, env = "WAVRAD_MAX_PROBES", default_value_t = crate::service::DEFAULT_MAX_PROBES)]
     pub max_probes: usize,
+    /// Cluster mode: the PostgreSQL holding the jobs and the queue (postgres://...); needs
+    /// --object-store. Default: the embedded file store under --data-dir.
+    #[arg(long, env = "WAVRAD_DATABASE_URL", hide_env_values = true)]
+    pub database_url: Option<String>,
+    /// Cluster mode: where uploads and outputs live, s3://BUCKET[/prefix] (AWS_* variables) or
+    /// file:///path; needs --database-url.
+    #[arg(long, env = "WAVRAD_OBJECT_STORE")]
+    pub object_store: Option<String>,
+    /// Cluster mode: seconds a replica holds a claimed job without renewing its lease.
+    #[arg(long, env = "WAVRAD_LEASE_SECONDS", default_value_t = crate::service::cluster::DEFAULT_LEASE_SECONDS)]
+    pub lease_seconds: u64,
+    /// Cluster mode: claims of one job that may end without finishing before it is failed.
+    #[arg(long, env = "WAVRAD_MAX_ATTEMPTS", default_value_t = crate::service::cluster::DEFAULT_MAX_ATTEMPTS)]
+    pub max_attempts: u32,
 }
 
 fn init_logging(format: &str) {
@@ -671,6 +685,22 @@ fn serve(a: ServeArgs) -> ExitCode {
     config.max_concurrent_uploads = a.max_concurrent_uploads;
     config.probe_cache_jobs = a.probe_cache_jobs;
     config.max_probes = a.max_probes;
+    config.cluster = match (a.database_url, a.object_store) {
+        (None, None) => None,
+        (Some(database_url), Some(object_store)) => {
+            let mut cluster =
+                crate::service::cluster::ClusterSettings::new(database_url, object_store);
+            cluster.lease_seconds = a.lease_seconds;
+            cluster.max_attempts = a.max_attempts;
+            Some(cluster)
+        }
+        _ => {
+            return bad_input(
+                "cluster mode needs both --database-url (WAVRAD_DATABASE_URL) and \
+                 --object-store (WAVRAD_OBJECT_STORE)",
+            )
+        }
+    };
     if let Err(e) = config.validate() {
         return bad_input(e);
     }

@@ -455,3 +455,39 @@ async fn an_idempotency_key_reused_with_another_request_is_refused() {
     let list = list_jobs(&client, &base).await;
     assert_eq!(list["jobs"].as_array().unwrap().len(), 1, "no job was made");
 }
+
+/// `attempts` in the job document (the same contract as cluster mode's numbered attempts): 0 while
+/// the job waits for its first run, 1 once it ran, and kept in `state.json` across a restart.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_finished_job_shows_one_attempt() {
+    let dir = data_dir("http-attempts");
+    let mut config = ServiceConfig::new(&dir);
+    config.max_queued = 4;
+    let base = start(config).await;
+    let client = client();
+    let busy = submit_ok(&client, &base, "order=1", never_converging_scene()).await;
+    let busy_id = job_id(&busy);
+    wait_for(&client, &base, &busy_id, "running", Duration::from_secs(10)).await;
+    // The single runner is busy: the second job waits, never run.
+    let waiting = submit_ok(&client, &base, "order=1", small_scene(0.5)).await;
+    assert_eq!(waiting["attempts"], 0, "{waiting}");
+    assert_eq!(get_job(&client, &base, &busy_id).await["attempts"], 1);
+    assert_eq!(
+        delete_job(&client, &base, &busy_id).await.status(),
+        StatusCode::ACCEPTED
+    );
+    let done = wait_for(
+        &client,
+        &base,
+        &job_id(&waiting),
+        "succeeded",
+        Duration::from_secs(60),
+    )
+    .await;
+    assert_eq!(done["attempts"], 1, "{done}");
+    let state: Value = serde_json::from_slice(
+        &std::fs::read(dir.join("jobs").join(job_id(&waiting)).join("state.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(state["attempts"], 1, "{state}");
+}

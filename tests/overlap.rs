@@ -15,7 +15,7 @@ use wavrad::domain::DomainMode;
 use wavrad::faces::merge_planar_faces;
 use wavrad::pipeline::bake;
 use wavrad::scene::gltf_writer::SceneBuilder;
-use wavrad::scene::{load_scene, ExternalFiles, Material, Scene, Triangle, TriangleSource};
+use wavrad::scene::{load_scene, ExternalFiles, Material, Scene, Triangle};
 use wavrad::solver::{Solution, SolverParams};
 
 mod common;

@@ -543,7 +543,6 @@ fn face_of_group(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::{Material, Triangle, TriangleSource};
 
     fn scene_of(tris: &[[DVec3; 3]]) -> Scene {
         Scene::of_triangles(tris)

@@ -110,6 +110,8 @@ pub struct JobStatus {
     pub error: Option<ErrorBody>,
     /// The solver's stop reason of a finished solve (`converged`, `time_budget`, ...).
     pub stop_reason: Option<String>,
+    /// Times a runner took the job (0 while it has not run).
+    pub attempts: u32,
 }
 
 impl JobStatus {
@@ -119,6 +121,7 @@ impl JobStatus {
             progress: ProgressView::default(),
             error: None,
             stop_reason: None,
+            attempts: 0,
         }
     }
 }
@@ -152,6 +155,10 @@ pub struct JobView {
     /// has.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stop_reason: Option<String>,
+    /// Times a runner (a replica, in cluster mode) took the job: 0 while queued for the first
+    /// time, 1 once it ran (tests/http_jobs.rs, `a_finished_job_shows_one_attempt`).
+    #[serde(default)]
+    pub attempts: u32,
     pub links: JobLinks,
 }
 
@@ -177,6 +184,9 @@ pub struct JobRecord {
     /// unkeyed jobs and from records written before it existed (a retry then gets the job).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub request_sha256: Option<String>,
+    /// Times a runner took the job (absent from records written before it existed: 0).
+    #[serde(default)]
+    pub attempts: u32,
 }
 
 /// One job.
@@ -299,6 +309,7 @@ impl Job {
             progress: status.progress,
             error: status.error.clone(),
             stop_reason: status.stop_reason.clone(),
+            attempts: status.attempts,
             links: JobLinks {
                 result: format!("{base}/result"),
                 lightmap: format!("{base}/lightmap.exr"),
@@ -324,6 +335,7 @@ impl Job {
             stop_reason: status.stop_reason.clone(),
             idempotency_key: self.idempotency_key.clone(),
             request_sha256: self.request_sha256.clone(),
+            attempts: status.attempts,
         }
     }
 

@@ -117,5 +117,34 @@ pub fn render(state: &AppState) -> String {
         "Visibility rays traced by the solves that succeeded.",
         &[("", m.rays.load(Ordering::Relaxed) as f64)],
     );
+    if let Some(cluster) = state.cluster() {
+        // Per replica: what this replica did; the job gauges above count this replica's
+        // board, which stays empty in cluster mode (the jobs are in the database).
+        let c = &cluster.counters;
+        series(
+            "wavrad_cluster_claims_total",
+            "counter",
+            "Jobs this replica claimed from the database (each claim is an attempt).",
+            &[("", c.claims.load(Ordering::Relaxed) as f64)],
+        );
+        series(
+            "wavrad_cluster_lost_leases_total",
+            "counter",
+            "Attempts of this replica fenced out by a newer attempt (outputs discarded).",
+            &[("", c.lost_leases.load(Ordering::Relaxed) as f64)],
+        );
+        series(
+            "wavrad_cluster_cancels_total",
+            "counter",
+            "Cancel requests this replica's heartbeat turned into a stop.",
+            &[("", c.cancels_seen.load(Ordering::Relaxed) as f64)],
+        );
+        series(
+            "wavrad_cluster_running",
+            "gauge",
+            "Solves running on this replica now.",
+            &[("", state.active_solves() as f64)],
+        );
+    }
     out
 }

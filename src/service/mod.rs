@@ -15,9 +15,14 @@
 //! - Shutdown: stop accepting, stop running solves at their next check and persist them as
 //!   `queued`, end event streams, then return.
 //! - [`metrics`]: `/metrics` in Prometheus text.
+//! - Cluster mode ([`cluster`], `ServiceConfig::cluster`): the jobs and the queue in PostgreSQL,
+//!   uploads and outputs in object storage; the router then takes the job routes from
+//!   `cluster::routes` and the replica runs `cluster::worker` instead of the local runners and
+//!   recovery. Without it nothing of the cluster runs.
 //!
 //! `GET /` is a small dashboard page (no external resources) that polls `GET /v1/jobs`.
 
+pub mod cluster;
 pub(crate) mod error;
 pub(crate) mod extract;
 pub(crate) mod jobs;
@@ -123,6 +128,8 @@ pub struct ServiceConfig {
     pub probe_cache_jobs: usize,
     /// Probe points accepted in one probe request; more is refused with 400.
     pub max_probes: usize,
+    /// Cluster mode (`--database-url` and `--object-store`); None: the embedded file store.
+    pub cluster: Option<cluster::ClusterSettings>,
 }
 
 impl std::fmt::Debug for ServiceConfig {
@@ -142,6 +149,7 @@ impl std::fmt::Debug for ServiceConfig {
             .field("max_concurrent_uploads", &self.max_concurrent_uploads)
             .field("probe_cache_jobs", &self.probe_cache_jobs)
             .field("max_probes", &self.max_probes)
+            .field("cluster", &self.cluster)
             .finish()
     }
 }
@@ -164,6 +172,7 @@ impl ServiceConfig {
             max_concurrent_uploads: DEFAULT_MAX_CONCURRENT_UPLOADS,
             probe_cache_jobs: DEFAULT_PROBE_CACHE_JOBS,
             max_probes: DEFAULT_MAX_PROBES,
+            cluster: None,
         }
     }
 
@@ -198,6 +207,9 @@ impl ServiceConfig {
         }
         if self.max_job_seconds == Some(0) {
             return Err("--max-job-seconds must be at least 1".into());
+        }
+        if let Some(cluster) = &self.cluster {
+            cluster.validate()?;
         }
         if self
             .api_token
@@ -246,12 +258,30 @@ struct Shared {
     /// Held while a saved solution is loaded for a probe request (one load at a time bounds
     /// the memory and CPU that probes on jobs out of memory take).
     probe_loads: tokio::sync::Mutex<()>,
+    /// Cluster mode's database and object store (None: the embedded file store).
+    cluster: Option<Arc<cluster::Cluster>>,
 }
 
 impl AppState {
     /// Opens the store under `config.data_dir`, builds the solver pool and starts the runners.
     /// Must be called inside a Tokio runtime (the runners are Tokio tasks).
     pub fn new(config: ServiceConfig) -> io::Result<AppState> {
+        AppState::build(config, None)
+    }
+
+    /// The state of a cluster replica: the local job board stays empty (no recovery, no local
+    /// runners); `cluster::worker` runners claim jobs from the database.
+    pub fn new_cluster(
+        config: ServiceConfig,
+        cluster: Arc<cluster::Cluster>,
+    ) -> io::Result<AppState> {
+        AppState::build(config, Some(cluster))
+    }
+
+    fn build(
+        config: ServiceConfig,
+        cluster: Option<Arc<cluster::Cluster>>,
+    ) -> io::Result<AppState> {
         config
             .validate()
             .map_err(|e| io::Error::new(io::ErrorKind::InvalidInput, e))?;
@@ -264,7 +294,9 @@ impl AppState {
         let data_dir_lock = lock::DataDirLock::acquire(&config.data_dir)?;
         let store = FileStore::open(&config.data_dir)?;
         let jobs = JobBoard::new(config.max_queued);
-        recovery::recover(&store, &jobs)?;
+        if cluster.is_none() {
+            recovery::recover(&store, &jobs)?;
+        }
         let workers = config.workers;
         let pool = Arc::new(runner::solver_pool(workers)?);
         let max_in_flight = config.max_in_flight;
@@ -283,11 +315,22 @@ impl AppState {
                 active_solves: std::sync::atomic::AtomicUsize::new(0),
                 probe_sources: std::sync::Mutex::new(std::collections::VecDeque::new()),
                 probe_loads: tokio::sync::Mutex::new(()),
+                cluster,
             }),
         };
-        runner::enforce_retention(&state);
-        runner::spawn_runners(&state, pool, workers);
+        match state.cluster() {
+            Some(cluster) => cluster::worker::spawn(&state, cluster, pool, workers),
+            None => {
+                runner::enforce_retention(&state);
+                runner::spawn_runners(&state, pool, workers);
+            }
+        }
         Ok(state)
+    }
+
+    /// Cluster mode's handles, when the service runs as a replica.
+    pub fn cluster(&self) -> Option<&Arc<cluster::Cluster>> {
+        self.inner.cluster.as_ref()
     }
 
     pub fn config(&self) -> &ServiceConfig {
@@ -331,6 +374,13 @@ impl AppState {
         self.inner
             .active_solves
             .fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Solves in progress on this process's pool.
+    pub(crate) fn active_solves(&self) -> usize {
+        self.inner
+            .active_solves
+            .load(std::sync::atomic::Ordering::SeqCst)
     }
 
     pub(crate) fn solve_ended(&self) {
@@ -529,10 +579,16 @@ pub fn api_routes(max_body: usize) -> Vec<ApiRoute> {
 /// tracing.
 pub fn app(state: AppState) -> Router {
     let max_body = state.config().max_body_bytes;
+    let clustered = state.cluster().is_some();
     let mut router = Router::new();
     for r in api_routes(max_body) {
+        // A cluster replica answers the job routes from the database and the object store.
+        let handler = match clustered {
+            true => cluster::routes::handler(r.path, &r.method, max_body).unwrap_or(r.handler),
+            false => r.handler,
+        };
         // Routes on one path merge their methods.
-        router = router.route(r.path, r.handler);
+        router = router.route(r.path, handler);
     }
     router
         .fallback(error::route_not_found)
@@ -635,7 +691,13 @@ pub struct Server {
 impl Server {
     /// Starts the state (store, pool, runners) and binds `addr` (port 0 picks a free port).
     pub async fn bind(config: ServiceConfig, addr: SocketAddr) -> io::Result<Server> {
-        let state = AppState::new(config)?;
+        let state = match config.cluster.clone() {
+            Some(settings) => {
+                let cluster = cluster::Cluster::connect(settings).await?;
+                AppState::new_cluster(config, cluster)?
+            }
+            None => AppState::new(config)?,
+        };
         let listener = TcpListener::bind(addr).await?;
         let addr = listener.local_addr()?;
         tracing::info!(%addr, data_dir = %state.config().data_dir.display(), "wavrad serve listening");

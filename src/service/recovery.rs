@@ -101,6 +101,7 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
             ),
         }),
         stop_reason: None,
+        attempts: 0,
     }
     };
     let record = match record {
@@ -117,6 +118,7 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
             progress: record.progress,
             error: record.error,
             stop_reason: record.stop_reason,
+            attempts: record.attempts,
         };
         let params = params.unwrap_or_default();
         let job = Job::restore(id.clone(), created, seq, params, status, key)
@@ -143,9 +145,19 @@ fn read_job(store: &FileStore, id: &JobId, seq: u64) -> (Job, Outcome) {
         Ok(params) => {
             tracing::info!(job = %id, was = record.state.as_str(), "queued again after a restart");
             (
-                Job::restore(id.clone(), created, seq, params, JobStatus::queued(), key)
-                    .with_name(name)
-                    .with_request_sha256(sha256),
+                Job::restore(
+                    id.clone(),
+                    created,
+                    seq,
+                    params,
+                    JobStatus {
+                        attempts: record.attempts,
+                        ..JobStatus::queued()
+                    },
+                    key,
+                )
+                .with_name(name)
+                .with_request_sha256(sha256),
                 Outcome::Requeue,
             )
         }

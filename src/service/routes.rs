@@ -6,9 +6,9 @@
 //! (`POST /v1/jobs`) is `submit`; a finished job's outputs (result, probes, convergence, files)
 //! are `outputs`; the 3-D view page and the static files pages load (three.js) are `pages`. Every handler is re-exported here under its old path.
 
-mod outputs;
+pub(crate) mod outputs;
 mod pages;
-mod submit;
+pub(crate) mod submit;
 
 pub use outputs::{get_convergence, get_file, get_result, post_probes};
 pub use pages::{asset, viewer};

@@ -119,6 +119,7 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
         s.state = if job.cancel_requested() {
             JobState::Cancelled
         } else {
+            s.attempts += 1;
             JobState::Running
         };
         true
@@ -151,7 +152,10 @@ fn process_inner(state: &AppState, job: &Arc<Job>) {
         if outcome.stop_reason == StopReason::Cancelled && !job.cancel_requested() {
             // Stopped for a shutdown: back to the queue, to start over at the next start.
             job.settle(store, |s| {
-                *s = JobStatus::queued();
+                *s = JobStatus {
+                    attempts: s.attempts,
+                    ..JobStatus::queued()
+                };
                 true
             });
             tracing::info!("stopped for shutdown; queued again");
@@ -223,14 +227,14 @@ pub(crate) fn enforce_retention(state: &AppState) {
     }
 }
 
-enum Finished {
+pub(crate) enum Finished {
     Solved(JobOutcome),
     Error(ErrorBody),
 }
 
 /// Runs a solve; its error or panic becomes the job's error (a panic never leaves this frame, so
 /// it cannot reach rayon, which would abort the process).
-fn guarded(solve: impl FnOnce() -> Result<JobOutcome, JobError>) -> Finished {
+pub(crate) fn guarded(solve: impl FnOnce() -> Result<JobOutcome, JobError>) -> Finished {
     match catch_unwind(AssertUnwindSafe(solve)) {
         Ok(Ok(outcome)) => Finished::Solved(outcome),
         Ok(Err(e)) => Finished::Error(job_error_body(&e)),
@@ -332,7 +336,7 @@ fn scene_error_body(e: &SceneError) -> ErrorBody {
 }
 
 /// The progress object of a finished solve, from result.json's `stats`.
-fn final_progress(result: &serde_json::Value) -> Option<ProgressView> {
+pub(crate) fn final_progress(result: &serde_json::Value) -> Option<ProgressView> {
     let stats = result.get("stats")?;
     Some(ProgressView {
         unshot_ratio: stats.get("unshot_ratio")?.as_f64()?,

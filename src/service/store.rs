@@ -58,7 +58,7 @@ const ID_ATTEMPTS: usize = 16;
 pub struct JobId(String);
 
 impl JobId {
-    fn generate(created: SystemTime) -> JobId {
+    pub(crate) fn generate(created: SystemTime) -> JobId {
         let ms = super::time::unix_millis(created) & 0xfff_ffff_ffff;
         let random = RandomState::new().hash_one(ms) & 0xf_ffff;
         JobId(format!("{ms:011x}{random:05x}"))

@@ -205,7 +205,7 @@ pub fn parse_convergence(text: &str) -> Result<Vec<ConvergenceRow>, String> {
 }
 
 /// The downloadable output files of a job (besides result.json) and their content types.
-fn output_file_type(name: &str) -> Option<&'static str> {
+pub(crate) fn output_file_type(name: &str) -> Option<&'static str> {
     match name {
         "preview.png" | "atlas.png" => return Some("image/png"),
         "scene.glb" => return Some("model/gltf-binary"),

@@ -166,7 +166,7 @@ pub const MAX_JOB_NAME_CHARS: usize = 200;
 
 /// The query of `POST /v1/jobs`: the job's parameters (`JobParams`, unknown names refused) and
 /// the optional `name` of its scene (`job_name`). 400 `bad_parameters` naming what is wrong.
-fn submit_query(query: Option<&str>) -> Result<(JobParams, Option<String>), ApiError> {
+pub(crate) fn submit_query(query: Option<&str>) -> Result<(JobParams, Option<String>), ApiError> {
     let bad = |e: &dyn std::fmt::Display| {
         ApiError::bad_parameters(format!(
             "Failed to deserialize query string: {e}; parameters and their ranges are listed in \
@@ -197,7 +197,7 @@ fn submit_query(query: Option<&str>) -> Result<(JobParams, Option<String>), ApiE
 
 /// A scene name given as the `name` parameter: 1 to `MAX_JOB_NAME_CHARS` characters, no control
 /// characters (tests/http_uploads.rs, `a_job_carries_the_name_of_its_scene`).
-fn job_name(name: &str) -> Result<String, String> {
+pub(crate) fn job_name(name: &str) -> Result<String, String> {
     let chars = name.chars().count();
     if chars == 0 || chars > MAX_JOB_NAME_CHARS {
         return Err(format!(
@@ -218,7 +218,7 @@ fn job_name(name: &str) -> Result<String, String> {
 /// The default name of a multipart upload: its `scene` part's file name, without any folder a
 /// client put in it, control characters dropped, clipped to `MAX_JOB_NAME_CHARS` characters;
 /// none when nothing is left.
-fn name_of_file(file_name: &str) -> Option<String> {
+pub(crate) fn name_of_file(file_name: &str) -> Option<String> {
     let base = file_name.rsplit(['/', '\\']).next().unwrap_or(file_name);
     let name: String = base
         .chars()
@@ -232,7 +232,7 @@ fn name_of_file(file_name: &str) -> Option<String> {
 const MAX_IDEMPOTENCY_KEY: usize = 255;
 
 /// The `Idempotency-Key` header: 1 to 255 printable ASCII characters.
-fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
+pub(crate) fn idempotency_key(headers: &HeaderMap) -> Result<Option<String>, ApiError> {
     let Some(value) = headers.get("idempotency-key") else {
         return Ok(None);
     };
@@ -283,7 +283,7 @@ fn replay_or_refuse(job: &Job, fingerprint: &str) -> Result<Response, ApiError> 
 /// does not count (a retry may name it otherwise: tests/service_restart.rs,
 /// `finished_results_survive_a_restart`). Each piece is length-prefixed, so no two different
 /// requests share a byte stream.
-fn request_fingerprint(
+pub(crate) fn request_fingerprint(
     params: &JobParams,
     scene: &[u8],
     parts: &BTreeMap<String, Vec<u8>>,
@@ -318,7 +318,7 @@ fn replay(job: &Job) -> Response {
     response
 }
 
-pub(super) async fn read_body(request: Request, max_body: usize) -> Result<Bytes, ApiError> {
+pub(crate) async fn read_body(request: Request, max_body: usize) -> Result<Bytes, ApiError> {
     match Bytes::from_request(request, &()).await {
         Ok(body) => Ok(body),
         Err(rejection) if rejection.status() == StatusCode::PAYLOAD_TOO_LARGE => {
@@ -341,7 +341,7 @@ const SCENE_PART: &str = "scene";
 /// A `multipart/form-data` upload: the part `scene`, and the files it references, each a part
 /// named by its URI (the part's name, else its file name). Also returns the `scene` part's file
 /// name, when it has one.
-async fn read_multipart(
+pub(crate) async fn read_multipart(
     request: Request,
     max_body: usize,
 ) -> Result<(Bytes, BTreeMap<String, Vec<u8>>, Option<String>), ApiError> {
@@ -401,7 +401,11 @@ async fn read_multipart(
 }
 
 /// 422 when the solve's estimated memory exceeds `--max-memory-bytes`.
-fn check_memory(triangles: usize, order: usize, max_memory: u64) -> Result<(), ApiError> {
+pub(crate) fn check_memory(
+    triangles: usize,
+    order: usize,
+    max_memory: u64,
+) -> Result<(), ApiError> {
     let estimate = estimated_memory_bytes(triangles, order);
     if estimate <= max_memory {
         return Ok(());
@@ -419,14 +423,14 @@ fn check_memory(triangles: usize, order: usize, max_memory: u64) -> Result<(), A
 
 /// What a POST body holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum BodyKind {
+pub(crate) enum BodyKind {
     /// The scene itself (GLB or glTF JSON).
     Scene,
     /// `multipart/form-data`: the scene and the files it references.
     Multipart,
 }
 
-fn check_content_type(headers: &HeaderMap) -> Result<BodyKind, ApiError> {
+pub(crate) fn check_content_type(headers: &HeaderMap) -> Result<BodyKind, ApiError> {
     let given = headers
         .get(header::CONTENT_TYPE)
         .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
@@ -457,7 +461,7 @@ fn check_content_type(headers: &HeaderMap) -> Result<BodyKind, ApiError> {
     ))
 }
 
-fn content_length(headers: &HeaderMap) -> Option<u64> {
+pub(crate) fn content_length(headers: &HeaderMap) -> Option<u64> {
     headers
         .get(header::CONTENT_LENGTH)?
         .to_str()
@@ -467,7 +471,7 @@ fn content_length(headers: &HeaderMap) -> Option<u64> {
         .ok()
 }
 
-fn too_large(max_body: usize) -> ApiError {
+pub(crate) fn too_large(max_body: usize) -> ApiError {
     ApiError::new(
         StatusCode::PAYLOAD_TOO_LARGE,
         "payload_too_large",
