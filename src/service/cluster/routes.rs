@@ -17,7 +17,9 @@ use crate::scene::{load_scene, ExternalFiles};
 use crate::service::error::{clip, ApiError};
 use crate::service::extract::ApiPath;
 use crate::service::jobs::{JobState, JobView};
-use crate::service::routes::outputs::{output_file_type, parse_convergence, Convergence};
+use crate::service::routes::outputs::{
+    output_file_type, parse_convergence, read_probe_request, Convergence,
+};
 use crate::service::routes::submit::{self as local, BodyKind};
 use crate::service::routes::JobList;
 use crate::service::store::{JobId, SceneFormat, CONVERGENCE_FILE, RESULT_FILE, SOLUTION_FILE};
@@ -458,32 +460,7 @@ pub async fn post_probes(
     let cluster = cluster(&state)?.clone();
     let row = find(&cluster, &id).await?;
     require_succeeded(&row, "probes are evaluated once it has succeeded")?;
-    let max_body = state.config().max_body_bytes;
-    let _permit = state
-        .upload_permits()
-        .acquire()
-        .await
-        .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
-    let body = local::read_body(request, max_body).await?;
-    let probes = parse_probes(&body).map_err(|e| {
-        ApiError::new(
-            StatusCode::BAD_REQUEST,
-            "bad_probes",
-            format!("{e} (body: a probe points file, [{{\"p\":[x,y,z],\"n\":[nx,ny,nz]}}, ...])"),
-        )
-    })?;
-    let max_probes = state.config().max_probes;
-    if probes.len() > max_probes {
-        return Err(ApiError::new(
-            StatusCode::BAD_REQUEST,
-            "too_many_probes",
-            format!(
-                "{} probe points, more than this server evaluates in one request ({max_probes}, \
-                 --max-probes); split them over several requests",
-                probes.len()
-            ),
-        ));
-    }
+    let (_permit, probes) = read_probe_request(&state, request).await?;
     let source = match state.probe_source(&row.id) {
         Some(source) => source,
         None => {

@@ -8,7 +8,7 @@ use super::find;
 use super::submit::read_body;
 use crate::job::ProbeSource;
 use crate::output::page_file_name;
-use crate::output::probes::parse_probes;
+use crate::output::probes::{parse_probes, ProbePoint};
 use crate::service::error::{clip, panic_message, ApiError};
 use crate::service::extract::ApiPath;
 use crate::service::jobs::{Job, JobState};
@@ -23,6 +23,7 @@ use axum::Json;
 use serde::Serialize;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::Arc;
+use tokio::sync::SemaphorePermit;
 
 /// 409 `job_not_succeeded` unless the job has succeeded; `what` says what waits for that.
 fn require_succeeded(job: &Job, what: &str) -> Result<(), ApiError> {
@@ -64,14 +65,28 @@ pub async fn post_probes(
 ) -> Result<Response, ApiError> {
     let job = find(&state, &id)?;
     require_succeeded(&job, "probes are evaluated once it has succeeded")?;
-    let max_body = state.config().max_body_bytes;
     // Bodies are read and evaluated under the same bound as scene uploads.
-    let _permit = state
+    let (_permit, probes) = read_probe_request(&state, request).await?;
+    let source = probe_source_of(&state, &job).await?;
+    let values = tokio::task::spawn_blocking(move || source.evaluate(&probes))
+        .await
+        .map_err(|e| ApiError::internal("evaluating the probes failed", e))?;
+    Ok(Json(values).into_response())
+}
+
+/// The body of a probe request, read and parsed under an upload permit (held by the caller while
+/// it evaluates): 400 `bad_probes` for a body that is not a probe points file, 400
+/// `too_many_probes` beyond `--max-probes`. One reading for both stores' routes.
+pub(crate) async fn read_probe_request(
+    state: &AppState,
+    request: Request,
+) -> Result<(SemaphorePermit<'_>, Vec<ProbePoint>), ApiError> {
+    let permit = state
         .upload_permits()
         .acquire()
         .await
         .map_err(|e| ApiError::internal("the upload limiter is closed", e))?;
-    let body = read_body(request, max_body).await?;
+    let body = read_body(request, state.config().max_body_bytes).await?;
     let probes = parse_probes(&body).map_err(|e| {
         ApiError::new(
             StatusCode::BAD_REQUEST,
@@ -91,11 +106,7 @@ pub async fn post_probes(
             ),
         ));
     }
-    let source = probe_source_of(&state, &job).await?;
-    let values = tokio::task::spawn_blocking(move || source.evaluate(&probes))
-        .await
-        .map_err(|e| ApiError::internal("evaluating the probes failed", e))?;
-    Ok(Json(values).into_response())
+    Ok((permit, probes))
 }
 
 /// The solution of succeeded job `job` for probes: from memory, else loaded from its saved
