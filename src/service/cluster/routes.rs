@@ -11,7 +11,6 @@ use super::objects::Objects;
 use super::worker::download_input;
 use super::Cluster;
 use crate::job::ProbeSource;
-use crate::output::probes::parse_probes;
 use crate::pipeline::check_solvable;
 use crate::scene::{load_scene, ExternalFiles};
 use crate::service::error::{clip, ApiError};
