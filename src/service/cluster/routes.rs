@@ -11,8 +11,6 @@ use super::objects::Objects;
 use super::worker::download_input;
 use super::Cluster;
 use crate::job::ProbeSource;
-use crate::pipeline::check_solvable;
-use crate::scene::{load_scene, ExternalFiles};
 use crate::service::error::{clip, ApiError};
 use crate::service::extract::ApiPath;
 use crate::service::jobs::{JobState, JobView};
@@ -180,7 +178,18 @@ pub async fn create_job(
         BodyKind::Multipart => local::read_multipart(request, max_body).await?,
     };
     let name = name.or_else(|| file_name.as_deref().and_then(local::name_of_file));
-    let hash = local::request_fingerprint(&params, &body, &parts);
+    // Hashing a large upload takes a while: off the async threads.
+    let (hash, parts) = {
+        let (hashed, fingerprinted) = (body.clone(), params.clone());
+        tokio::task::spawn_blocking(move || {
+            (
+                local::request_fingerprint(&fingerprinted, &hashed, &parts),
+                parts,
+            )
+        })
+        .await
+        .map_err(|e| ApiError::internal("hashing the request failed", e))?
+    };
     if let Some(key) = &key {
         if let Some(row) = cluster.db.by_key(key).await.map_err(unavailable)? {
             return keyed_answer(&row, key, &hash);
@@ -190,26 +199,7 @@ pub async fn create_job(
         }
     }
 
-    let max_triangles = state.config().max_triangles;
-    let max_memory = state.config().max_memory_bytes;
-    let order = params.order;
-    let checked = body.clone();
-    let parts = tokio::task::spawn_blocking(move || {
-        let external = if parts.is_empty() {
-            ExternalFiles::Refuse
-        } else {
-            ExternalFiles::Named(parts.into_iter().collect())
-        };
-        let scene = load_scene(&checked, &external, max_triangles)?;
-        check_solvable(&scene)?;
-        local::check_memory(scene.triangles.len(), order, max_memory)?;
-        Ok::<_, ApiError>(match external {
-            ExternalFiles::Named(parts) => parts.into_iter().collect::<BTreeMap<_, _>>(),
-            _ => BTreeMap::new(),
-        })
-    })
-    .await
-    .map_err(|e| ApiError::internal("the scene check failed", e))??;
+    let parts = local::check_scene(&state, &body, parts, params.order).await?;
 
     let created = SystemTime::now();
     let id = JobId::generate(created);

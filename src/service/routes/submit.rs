@@ -85,26 +85,7 @@ pub async fn create_job(
     }
     let name = name.or_else(|| file_name.as_deref().and_then(name_of_file));
 
-    let max_triangles = state.config().max_triangles;
-    let max_memory = state.config().max_memory_bytes;
-    let order = params.order;
-    let checked = body.clone();
-    let parts = tokio::task::spawn_blocking(move || {
-        let external = if parts.is_empty() {
-            ExternalFiles::Refuse
-        } else {
-            ExternalFiles::Named(parts.into_iter().collect())
-        };
-        let scene = load_scene(&checked, &external, max_triangles)?;
-        check_solvable(&scene)?;
-        check_memory(scene.triangles.len(), order, max_memory)?;
-        Ok::<_, ApiError>(match external {
-            ExternalFiles::Named(parts) => parts.into_iter().collect(),
-            _ => BTreeMap::new(),
-        })
-    })
-    .await
-    .map_err(|e| ApiError::internal("the scene check failed", e))??;
+    let parts = check_scene(&state, &body, parts, params.order).await?;
 
     // Keyed submissions are stored one at a time, so two concurrent retries make one job.
     let _keyed = match &key {
@@ -226,6 +207,37 @@ pub(crate) fn name_of_file(file_name: &str) -> Option<String> {
         .take(MAX_JOB_NAME_CHARS)
         .collect();
     (!name.trim().is_empty()).then_some(name)
+}
+
+/// Loads the uploaded scene (off the async threads) as a solve would and refuses what cannot be
+/// solved: 422 for an unreadable or unsolvable scene, one over `--max-triangles`, or one whose
+/// estimated memory at `order` exceeds `--max-memory-bytes`. Returns the multipart parts the
+/// scene uses (those it names by URI). One check for the local and the cluster routes.
+pub(crate) async fn check_scene(
+    state: &AppState,
+    body: &Bytes,
+    parts: BTreeMap<String, Vec<u8>>,
+    order: usize,
+) -> Result<BTreeMap<String, Vec<u8>>, ApiError> {
+    let max_triangles = state.config().max_triangles;
+    let max_memory = state.config().max_memory_bytes;
+    let checked = body.clone();
+    tokio::task::spawn_blocking(move || {
+        let external = if parts.is_empty() {
+            ExternalFiles::Refuse
+        } else {
+            ExternalFiles::Named(parts.into_iter().collect())
+        };
+        let scene = load_scene(&checked, &external, max_triangles)?;
+        check_solvable(&scene)?;
+        check_memory(scene.triangles.len(), order, max_memory)?;
+        Ok::<_, ApiError>(match external {
+            ExternalFiles::Named(parts) => parts.into_iter().collect(),
+            _ => BTreeMap::new(),
+        })
+    })
+    .await
+    .map_err(|e| ApiError::internal("the scene check failed", e))?
 }
 
 /// Longest `Idempotency-Key` accepted.
