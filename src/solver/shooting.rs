@@ -11,8 +11,9 @@ use super::cover::{self, face_integral};
 use super::element_source::{ElementShot, SourceElement};
 use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
+use super::kernel::point_polygon_form_factor;
 use super::lights;
-use super::progress::{with_reports, Reporter, ShotKind};
+use super::progress::{with_reports, CostUnits, Reporter, ShotCounter, ShotKind, ShotPlan};
 use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
@@ -24,6 +25,7 @@ use super::{
 };
 use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
+use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -131,7 +133,7 @@ pub fn solve(
     loop {
         let ratio = unshot_ratio(&unshot, ratio_base);
         let elements = hierarchies.iter().map(leaf_count).sum();
-        let progress = reporter.after_shot(iterations, ratio, elements);
+        let progress = reporter.after_shot(iterations, ratio, ratio_base, elements);
         convergence.push(progress);
         if let Some(reason) = must_stop(&progress, &params, cancel) {
             stop = reason;
@@ -149,15 +151,13 @@ pub fn solve(
         } else {
             ShotKind::Indirect
         };
-        reporter.shot_started(iterations, kind);
         let completed = shoot(
             &ctx,
-            shooter,
-            direct,
+            (shooter, kind),
             facing_eps,
             &mut hierarchies,
             &mut unshot,
-            &mut reporter,
+            (&mut reporter, iterations),
         );
         if !completed {
             // The budget ended within the shot: the receivers it reached keep their light, the
@@ -275,15 +275,23 @@ fn shoot_lights(
             far,
             visibility: ctx.visibility,
         };
+        // What comes back of a light is taken as its power times the mean reflectance (its
+        // receivers are not weighed: each counts one).
+        let power = lights::unoccluded_power_estimate(light, ctx.roots, far);
         reporter.shot_started(
             shots,
-            ShotKind::Light {
-                left: lights.len() - 1 - shots as usize,
+            ShotPlan {
+                kind: ShotKind::Light {
+                    left: lights.len() - 1 - shots as usize,
+                },
+                power,
+                returns: power * mean_reflectance(ctx.roots),
             },
         );
         let receivers = hierarchies.iter().filter(|h| !h.nodes.is_empty()).count() as u64;
+        let units = CostUnits::new(receivers as f64);
         let hs = &mut *hierarchies;
-        let work = |done: &AtomicU64| {
+        let work = |done: &ShotCounter| {
             hs.par_iter_mut().enumerate().for_each(|(ri, h)| {
                 if h.nodes.is_empty() {
                     return;
@@ -293,10 +301,10 @@ fn shoot_lights(
                 if h.touched {
                     h.push_pull(ctx.bases.of(root.shape), root.rho, true);
                 }
-                done.fetch_add(1, Ordering::Relaxed);
+                done.finished(units.of(1.0), 0, 0);
             })
         };
-        with_reports(work, &mut |done| reporter.within_shot(done, receivers));
+        with_reports(work, &mut |c| reporter.within_shot(c, receivers));
         shots += 1;
     }
     shots
@@ -368,19 +376,20 @@ fn pick_shooter(
     (unshot[best] > 0.0).then_some((best, false))
 }
 
-/// One shot of root `shooter` onto every root that faces it, in parallel; each receiver's unshot
-/// power is updated. A long shot reports from within to `reporter`. Returns false when the time
-/// budget ended within the shot and receivers were left out (`tests/progress.rs`
+/// One shot of root `shooter` (of `kind`) onto every root that faces it, in parallel; each
+/// receiver's unshot power is updated. The shot's plan goes to `reporter` (after `iterations`
+/// shots), and a long shot reports from within to it. Returns false when the time budget ended
+/// within the shot and receivers were left out (`tests/progress.rs`
 /// `the_time_budget_stops_within_a_long_shot`).
 fn shoot(
     ctx: &ShotContext,
-    shooter: usize,
-    direct: bool,
+    (shooter, kind): (usize, ShotKind),
     facing_eps: f64,
     hierarchies: &mut [Hierarchy],
     unshot: &mut [f64],
-    reporter: &mut Reporter,
+    (reporter, iterations): (&mut Reporter, u64),
 ) -> bool {
+    let direct = matches!(kind, ShotKind::Direct { .. });
     let ctx = &ShotContext {
         detail_threshold: if direct {
             ctx.threshold / DIRECT_DETAIL_TIGHTENING
@@ -430,13 +439,46 @@ fn shoot(
     let visits = |ri: usize, h: &Hierarchy| {
         ri != shooter && !h.nodes.is_empty() && faces_each_other(sroot, &roots[ri], facing_eps)
     };
-    let receivers = hierarchies
+    // Per root, what it would receive with no occluder (0 when not visited): its cost grows with
+    // it over the threshold (links under a soft shadow), and its reflectance sends it back.
+    let power = if direct {
+        mean_rgb_sum(sroot.exitance) * sroot.face_area_m2
+    } else {
+        unshot[shooter]
+    };
+    let received: Vec<f64> = hierarchies
         .par_iter()
         .enumerate()
-        .filter(|&(ri, h)| visits(ri, h))
-        .count() as u64;
+        .map(|(ri, h)| {
+            if visits(ri, h) {
+                unoccluded_received(sroot, power, &roots[ri])
+            } else {
+                -1.0
+            }
+        })
+        .collect();
+    let receivers = received.iter().filter(|&&p| p >= 0.0).count() as u64;
+    let weight = |p: f64| 1.0 + p / ctx.threshold;
+    let units = CostUnits::new(
+        received
+            .iter()
+            .filter(|&&p| p >= 0.0)
+            .map(|&p| weight(p))
+            .sum(),
+    );
+    let expected = |ri: usize| received[ri].max(0.0) * mean_rgb_sum(roots[ri].rho) / 3.0;
+    let returns = (0..roots.len()).map(expected).sum();
+    let returns_units = CostUnits::new(returns);
+    reporter.shot_started(
+        iterations,
+        ShotPlan {
+            kind,
+            power,
+            returns,
+        },
+    );
     let interrupted = AtomicBool::new(false);
-    let work = |done: &AtomicU64| {
+    let work = |done: &ShotCounter| {
         hierarchies
             .par_iter_mut()
             .zip(unshot.par_iter_mut())
@@ -449,6 +491,7 @@ fn shoot(
                     interrupted.store(true, Ordering::Relaxed);
                     return;
                 }
+                let before = *power;
                 let is_far = power_bound
                     * far_field::transfer_fraction_bound(&ctx.spheres[shooter], &ctx.spheres[ri])
                     <= ctx.threshold;
@@ -470,10 +513,14 @@ fn shoot(
                     h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
                     *power = unshot_power(h, &roots[ri]);
                 }
-                done.fetch_add(1, Ordering::Relaxed);
+                done.finished(
+                    units.of(weight(received[ri])),
+                    returns_units.of(expected(ri)),
+                    returns_units.of(*power - before),
+                );
             })
     };
-    with_reports(work, &mut |done| reporter.within_shot(done, receivers));
+    with_reports(work, &mut |c| reporter.within_shot(c, receivers));
     hierarchies[shooter] = source_h;
     !interrupted.load(Ordering::Relaxed)
 }
@@ -487,6 +534,37 @@ fn clear_unshot(h: &mut Hierarchy, root: &ElementRoot, direct: bool) {
     } else {
         h.u.iter_mut().for_each(|c| *c = [0.0; 3]);
     }
+}
+
+/// The power `receiver` would get from `shooter` sending `power` W evenly over its domain with
+/// no occluder: the point form factor to the shooter's domain, averaged over the receiver's
+/// centre and corners (one of them may see the shooter when the centre does not), times its face
+/// area. A cost and reflection estimate for the ETA, not a transfer.
+fn unoccluded_received(shooter: &ElementRoot, power: f64, receiver: &ElementRoot) -> f64 {
+    let polygon = shooter.corners();
+    let corners = receiver.corners();
+    let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
+    let points = corners.iter().copied().chain(std::iter::once(centre));
+    let n = corners.len() as f64 + 1.0;
+    let ff: f64 = points
+        .filter(|p| shooter.normal.dot(*p - polygon[0]) > 0.0)
+        .map(|p| point_polygon_form_factor(p, receiver.normal, &polygon))
+        .sum::<f64>()
+        / n;
+    power / shooter.area_m2 * ff.min(1.0) * receiver.face_area_m2
+}
+
+/// The roots' mean reflectance, weighted by their face areas.
+fn mean_reflectance(roots: &[ElementRoot]) -> f64 {
+    let area: f64 = roots.iter().map(|r| r.face_area_m2).sum();
+    if area <= 0.0 {
+        return 0.0;
+    }
+    roots
+        .iter()
+        .map(|r| mean_rgb_sum(r.rho) / 3.0 * r.face_area_m2)
+        .sum::<f64>()
+        / area
 }
 
 /// Can any point of `a` (front side) see any point of `b` (front side)?
