@@ -2,7 +2,7 @@
 //! tolerances, one order, both modes, each solve its own process. It writes `bench.csv` with the
 //! documented columns and one row per solve, `ratios.csv`, and a `bench.svg` that parses as XML
 //! with both panels of the scene and a drawn line in each; it prints what it left out of the full
-//! grid; bad grid options exit 2 with a reason.
+//! grid and its wall and CPU seconds; bad grid options exit 2 with a reason.
 
 use std::process::Command;
 use wavrad::bench::sweep::CSV_HEADER;
@@ -38,6 +38,13 @@ fn a_small_sweep_writes_the_csv_and_the_chart() {
         "{stdout}"
     );
 
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.starts_with("sweep: 4 solves,") && l.contains(" s CPU")),
+        "{stdout}"
+    );
+
     let csv = std::fs::read_to_string(out.join("bench.csv")).expect("bench.csv");
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
@@ -55,6 +62,8 @@ fn a_small_sweep_writes_the_csv_and_the_chart() {
         "unshot_ratio",
         "nrms",
         "worst_point",
+        "wall_seconds",
+        "cpu_seconds",
     ] {
         assert!(header.contains(&column), "no column {column} in {header:?}");
     }
@@ -69,6 +78,10 @@ fn a_small_sweep_writes_the_csv_and_the_chart() {
         let num = |name: &str| row[col(name)].parse::<f64>().expect("a number");
         assert!(num("shots") >= 1.0 && num("elements") >= 6.0 && num("rays") > 0.0);
         assert!(num("peak_memory_bytes") > 1e6, "{row:?}");
+        // CPU time of the solve's process: some, and no more than its wall time on every core.
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as f64;
+        let (cpu, wall) = (num("cpu_seconds"), num("wall_seconds"));
+        assert!(cpu > 0.0 && cpu <= wall * cores + 0.1, "{row:?}");
         assert!(num("unshot_ratio") <= 1e-3, "{row:?}");
         // The cube's reference: a solve at these tolerances is within a few percent.
         let nrms = num("nrms");

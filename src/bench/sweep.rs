@@ -42,8 +42,8 @@ pub struct DefaultScene {
     pub tolerances: &'static [f64],
 }
 
-/// The default scenes. The Red Eclipse level runs at M2 and three tolerances only, so that the
-/// grid fits 20 minutes on two cores.
+/// The default scenes. The Red Eclipse level runs at M2 and two tolerances only (its tessellated
+/// mode shoots thousands of roots), so that the grid's CPU time stays within 20 minutes.
 pub const DEFAULT_SCENES: [DefaultScene; 4] = [
     DefaultScene {
         name: "cornell_box",
@@ -63,7 +63,7 @@ pub const DEFAULT_SCENES: [DefaultScene; 4] = [
     DefaultScene {
         name: "redeclipse_dutility_lit",
         orders: &[2],
-        tolerances: &[1e-4, 1e-5, 3e-6],
+        tolerances: &[1e-4, 1e-5],
     },
 ];
 
@@ -99,6 +99,9 @@ pub struct Row {
     pub seconds: f64,
     /// The whole process: loading, preparation, solve and export.
     pub wall_seconds: f64,
+    /// The process's CPU time (user + system, all threads; [`children_cpu_seconds`]); `NaN` when
+    /// unknown (a run of an older sweep read back by `--resume`).
+    pub cpu_seconds: f64,
     pub shots: u64,
     pub elements: u64,
     pub links: u64,
@@ -146,10 +149,18 @@ pub struct Report {
     pub rows: Vec<Row>,
     pub left_out: Vec<String>,
     pub ratios: Vec<Ratio>,
+    /// The sweep's wall seconds, from its start to its chart.
+    pub wall_seconds: f64,
+    /// The CPU seconds of the sweep's own process and of every solve in `rows` (those read back
+    /// by `--resume` too): what the grid takes at most on an idle machine
+    /// ([`children_cpu_seconds`]).
+    pub cpu_seconds: f64,
+    /// Rows whose CPU time is unknown (read back from an older sweep), left out of `cpu_seconds`.
+    pub cpu_unknown: usize,
 }
 
 /// The CSV columns, in order.
-pub const CSV_HEADER: &str = "scene,order,domain,tolerance,seconds,wall_seconds,shots,elements,links,peak_memory_bytes,rays,unshot_ratio,stop_reason,extended_faces,nrms,worst_point,worst_label";
+pub const CSV_HEADER: &str = "scene,order,domain,tolerance,seconds,wall_seconds,shots,elements,links,peak_memory_bytes,rays,unshot_ratio,stop_reason,extended_faces,nrms,worst_point,worst_label,cpu_seconds";
 
 /// The kill deadline of one solve capped at `max_seconds` of solving: loading, preparation and
 /// export are outside the solve's own budget.
@@ -262,14 +273,38 @@ fn read_convergence(path: &Path) -> Vec<(f64, f64)> {
 
 /// The process's wall seconds, beside a solve's outputs.
 const WALL_FILE: &str = "wall_seconds";
+/// The process's CPU seconds, beside a solve's outputs.
+const CPU_FILE: &str = "cpu_seconds";
+
+/// The CPU time (user + system) of this process's waited-for children so far, in seconds
+/// (`getrusage(RUSAGE_CHILDREN)`); `NaN` where the call fails. A solve's CPU time is the
+/// difference around its wait. On a machine with nothing else running, a sequence of processes
+/// takes at most its CPU time in wall time (each has at least one core whenever it can run),
+/// so the sweep's CPU total bounds its idle wall time whatever the load it was measured under.
+pub fn children_cpu_seconds() -> f64 {
+    cpu_seconds_of(libc::RUSAGE_CHILDREN)
+}
+
+/// `getrusage(who)`'s user + system seconds; `NaN` where the call fails.
+fn cpu_seconds_of(who: libc::c_int) -> f64 {
+    // SAFETY: `getrusage` writes one `rusage` into memory we own and reads nothing else.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let ok = unsafe { libc::getrusage(who, &mut usage) } == 0;
+    if !ok {
+        return f64::NAN;
+    }
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    seconds(usage.ru_utime) + seconds(usage.ru_stime)
+}
 
 /// Files of a solve's output that the sweep keeps.
-const KEPT: [&str; 5] = [
+const KEPT: [&str; 6] = [
     "result.json",
     "convergence.csv",
     "probe_values.json",
     "solve.log",
     WALL_FILE,
+    CPU_FILE,
 ];
 
 /// One cell of the grid and the folder its solve writes into.
@@ -288,6 +323,7 @@ fn solve_once(o: &SweepOptions, cell: &Cell) -> Result<Row, String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let log = std::fs::File::create(dir.join("solve.log")).map_err(|e| e.to_string())?;
     let start = Instant::now();
+    let cpu_before = children_cpu_seconds();
     let mut child = Command::new(&o.exe)
         .args(["--log-format", "json", "solve"])
         .arg(&set.scene)
@@ -325,6 +361,7 @@ fn solve_once(o: &SweepOptions, cell: &Cell) -> Result<Row, String> {
         std::thread::sleep(Duration::from_millis(50));
     };
     let wall_seconds = start.elapsed().as_secs_f64();
+    let cpu_seconds = children_cpu_seconds() - cpu_before;
     if !status.success() {
         return Err(format!(
             "the solve failed ({status}); see {}",
@@ -332,6 +369,7 @@ fn solve_once(o: &SweepOptions, cell: &Cell) -> Result<Row, String> {
         ));
     }
     write(&dir.join(WALL_FILE), &format!("{wall_seconds}\n"))?;
+    write(&dir.join(CPU_FILE), &format!("{cpu_seconds}\n"))?;
     // Lightmaps, pictures and solution.bin are large and unused here.
     if let Ok(entries) = std::fs::read_dir(dir) {
         for entry in entries.flatten() {
@@ -354,10 +392,13 @@ fn read_run(cell: &Cell) -> Result<Row, String> {
         tolerance,
         ref dir,
     } = *cell;
-    let wall_seconds = std::fs::read_to_string(dir.join(WALL_FILE))
-        .ok()
-        .and_then(|t| t.trim().parse().ok())
-        .unwrap_or(f64::NAN);
+    let number = |file: &str| {
+        std::fs::read_to_string(dir.join(file))
+            .ok()
+            .and_then(|t| t.trim().parse().ok())
+            .unwrap_or(f64::NAN)
+    };
+    let (wall_seconds, cpu_seconds) = (number(WALL_FILE), number(CPU_FILE));
     let result: Value = read_json(&dir.join("result.json"))?;
     let values: Vec<ProbeValue> = read_json(&dir.join("probe_values.json"))?;
     let score = set.score(&values);
@@ -370,6 +411,7 @@ fn read_run(cell: &Cell) -> Result<Row, String> {
         tolerance,
         seconds: s["seconds"].as_f64().unwrap_or(f64::NAN),
         wall_seconds,
+        cpu_seconds,
         shots: int("iterations"),
         elements: int("elements"),
         links: int("links"),
@@ -388,7 +430,7 @@ fn read_run(cell: &Cell) -> Result<Row, String> {
 /// One CSV line (no newline).
 pub fn csv_line(r: &Row) -> String {
     format!(
-        "{},{},{},{:e},{:.4},{:.3},{},{},{},{},{},{:e},{},{},{:.6},{:.6},{}",
+        "{},{},{},{:e},{:.4},{:.3},{},{},{},{},{},{:e},{},{},{:.6},{:.6},{},{:.3}",
         r.scene,
         r.order,
         r.domain,
@@ -406,6 +448,7 @@ pub fn csv_line(r: &Row) -> String {
         r.nrms,
         r.worst,
         r.worst_label.replace(',', ";"),
+        r.cpu_seconds,
     )
 }
 
@@ -564,6 +607,7 @@ fn check(o: &SweepOptions) -> Result<(), String> {
 /// Runs the sweep, calling `say` with each line of progress, and writes the outputs.
 pub fn run(o: &SweepOptions, say: &mut dyn FnMut(&str)) -> Result<Report, String> {
     check(o)?;
+    let start = Instant::now();
     let names: Vec<String> = if o.scenes.is_empty() {
         DEFAULT_SCENES.iter().map(|d| d.name.to_string()).collect()
     } else {
@@ -679,12 +723,32 @@ pub fn run(o: &SweepOptions, say: &mut dyn FnMut(&str)) -> Result<Report, String
     }
     write(&o.out.join("ratios.csv"), &ratios)?;
     chart::draw(&o.out.join("bench.svg"), &plots)?;
+    report.wall_seconds = start.elapsed().as_secs_f64();
+    let known = report.rows.iter().filter(|r| r.cpu_seconds.is_finite());
+    report.cpu_seconds =
+        cpu_seconds_of(libc::RUSAGE_SELF) + known.map(|r| r.cpu_seconds).sum::<f64>();
+    report.cpu_unknown = report
+        .rows
+        .iter()
+        .filter(|r| !r.cpu_seconds.is_finite())
+        .count();
     Ok(report)
 }
 
 /// The closing summary: the ratios and what was left out.
 pub fn summary(report: &Report) -> String {
-    let mut s = String::new();
+    let mut s = format!(
+        "sweep: {} solves, {:.0} s wall, {:.0} s CPU (the sweep's process and its solves; on an \
+         idle machine the sweep takes at most its CPU time){}\n",
+        report.rows.len(),
+        report.wall_seconds,
+        report.cpu_seconds,
+        if report.cpu_unknown > 0 {
+            format!("; CPU time unknown for {} solves", report.cpu_unknown)
+        } else {
+            String::new()
+        }
+    );
     for r in &report.ratios {
         let _ = writeln!(
             s,
