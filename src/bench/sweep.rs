@@ -29,7 +29,7 @@ pub const ORDERS: [usize; 3] = [1, 2, 3];
 /// Both domain modes.
 pub const MODES: [&str; 2] = ["extended", "tessellated"];
 /// Default cap on one solve's seconds (its `--max-seconds`).
-pub const DEFAULT_MAX_SECONDS: f64 = 120.0;
+pub const DEFAULT_MAX_SECONDS: f64 = 300.0;
 /// The lightmap density of the sweep's solves: their lightmaps are not kept, and the atlas never
 /// changes a solution, so a coarse one keeps each process's export short.
 pub const SWEEP_TEXELS_PER_METER: f64 = 4.0;
