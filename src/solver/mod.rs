@@ -15,6 +15,7 @@ pub(crate) mod basis;
 pub(crate) mod cover;
 mod element;
 mod element_source;
+mod eta;
 mod far_field;
 pub(crate) mod hierarchy;
 pub mod kernel;
@@ -141,7 +142,7 @@ pub struct Progress {
     /// Receiver roots the shot in progress visits (those facing the shooter); 0 between shots.
     pub shot_receivers: u64,
     /// Estimated seconds until the solve ends: the target reached, or the time budget spent
-    /// (`progress::EtaEstimator`); `None` until it can be estimated.
+    /// (`eta::EtaEstimator`); `None` until it can be estimated.
     pub eta_seconds: Option<f64>,
 }
 

@@ -9,11 +9,12 @@
 use super::basis::MAX_FUNCTIONS;
 use super::cover::{self, face_integral};
 use super::element_source::{ElementShot, SourceElement};
+use super::eta::{ShotKind, ShotPlan};
 use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
 use super::kernel::point_polygon_form_factor;
 use super::lights;
-use super::progress::{with_reports, CostUnits, Reporter, ShotCounter, ShotKind, ShotPlan};
+use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
 use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
