@@ -114,18 +114,39 @@ pub struct ElementRoot {
 }
 
 impl ElementRoot {
-    /// World-space corners of the root's shape (3 or 4).
-    pub fn corners(&self) -> Vec<DVec3> {
+    /// World-space corners of the root's shape (3 or 4), without allocating: the solver asks
+    /// for them for every root in every shot.
+    pub fn corners(&self) -> Corners {
         let f = &self.frame;
         match self.shape {
-            Shape::Triangle => vec![f.origin, f.origin + f.u, f.origin + f.v],
-            Shape::Parallelogram => vec![
-                f.origin,
-                f.origin + f.u,
-                f.origin + f.u + f.v,
-                f.origin + f.v,
-            ],
+            Shape::Triangle => Corners {
+                points: [f.origin, f.origin + f.u, f.origin + f.v, f.origin],
+                len: 3,
+            },
+            Shape::Parallelogram => Corners {
+                points: [
+                    f.origin,
+                    f.origin + f.u,
+                    f.origin + f.u + f.v,
+                    f.origin + f.v,
+                ],
+                len: 4,
+            },
         }
+    }
+}
+
+/// A root's corners in order (3 for a triangle, 4 for a parallelogram); derefs to the slice.
+#[derive(Debug, Clone, Copy)]
+pub struct Corners {
+    points: [DVec3; 4],
+    len: usize,
+}
+
+impl std::ops::Deref for Corners {
+    type Target = [DVec3];
+    fn deref(&self) -> &[DVec3] {
+        &self.points[..self.len]
     }
 }
 

@@ -64,8 +64,18 @@ pub fn point_rings_form_factor(x: DVec3, n: DVec3, rings: &[Vec<DVec3>]) -> f64 
 /// Lambert's contour integral over the polygon clipped to the front of `x`'s tangent plane; its
 /// sign follows the polygon's orientation.
 fn signed_contour_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
+    // Wholly in front (the usual case): clipping would copy the polygon; it runs once per
+    // quadrature point of every link, so it allocates only when it cuts.
+    if polygon.iter().all(|p| n.dot(*p - x) >= 0.0) {
+        return front_contour_integral(x, n, polygon);
+    }
     let mut clipped = Vec::with_capacity(polygon.len() + 2);
     clip_to_front(x, n, polygon, &mut clipped);
+    front_contour_integral(x, n, &clipped)
+}
+
+/// Lambert's contour integral over a polygon wholly in front of `x`'s tangent plane.
+fn front_contour_integral(x: DVec3, n: DVec3, clipped: &[DVec3]) -> f64 {
     if clipped.len() < 3 {
         return 0.0;
     }

@@ -26,7 +26,6 @@ use super::{
 };
 use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
-use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -452,7 +451,7 @@ fn shoot(
         .enumerate()
         .map(|(ri, h)| {
             if visits(ri, h) {
-                unoccluded_received(sroot, power, &roots[ri])
+                unoccluded_received(ctx, shooter, power, ri)
             } else {
                 -1.0
             }
@@ -537,22 +536,27 @@ fn clear_unshot(h: &mut Hierarchy, root: &ElementRoot, direct: bool) {
     }
 }
 
-/// The power `receiver` would get from `shooter` sending `power` W evenly over its domain with
-/// no occluder: the point form factor to the shooter's domain, averaged over the receiver's
-/// centre and corners (one of them may see the shooter when the centre does not), times its face
-/// area. A cost and reflection estimate for the ETA, not a transfer.
-fn unoccluded_received(shooter: &ElementRoot, power: f64, receiver: &ElementRoot) -> f64 {
-    let polygon = shooter.corners();
-    let corners = receiver.corners();
-    let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-    let points = corners.iter().copied().chain(std::iter::once(centre));
-    let n = corners.len() as f64 + 1.0;
-    let ff: f64 = points
-        .filter(|p| shooter.normal.dot(*p - polygon[0]) > 0.0)
-        .map(|p| point_polygon_form_factor(p, receiver.normal, &polygon))
-        .sum::<f64>()
-        / n;
-    power / shooter.area_m2 * ff.min(1.0) * receiver.face_area_m2
+/// The power root `ri` would get from root `shooter` sending `power` W evenly over its domain
+/// with no occluder: its face area times a form factor to the shooter's domain. A far receiver
+/// takes the point estimate at its centre (`far_field::point_form_factor`); a near one the form
+/// factor averaged over its centre and corners (one of them may see the shooter when the centre
+/// does not). A cost and reflection estimate for the ETA, not a transfer: it runs for every
+/// receiver of every shot, so it allocates nothing.
+fn unoccluded_received(ctx: &ShotContext, shooter: usize, power: f64, ri: usize) -> f64 {
+    let (sroot, receiver) = (&ctx.roots[shooter], &ctx.roots[ri]);
+    let (s, r) = (&ctx.spheres[shooter], &ctx.spheres[ri]);
+    let ff = far_field::point_form_factor(sroot, s, receiver, r).unwrap_or_else(|| {
+        let polygon = sroot.corners();
+        let corners = receiver.corners();
+        let points = corners.iter().copied().chain(std::iter::once(r.centre));
+        let n = corners.len() as f64 + 1.0;
+        points
+            .filter(|p| sroot.normal.dot(*p - polygon[0]) > 0.0)
+            .map(|p| point_polygon_form_factor(p, receiver.normal, &polygon))
+            .sum::<f64>()
+            / n
+    });
+    power / sroot.area_m2 * ff.min(1.0) * receiver.face_area_m2
 }
 
 /// The roots' mean reflectance, weighted by their face areas.
