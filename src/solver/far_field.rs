@@ -130,13 +130,7 @@ mod tests {
     /// `cos-weighted` of a small receiver disc from points of the source never exceeds it.
     #[test]
     fn far_field_bound_holds_for_random_pairs() {
-        let mut seed = 12345u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(12345);
         for _ in 0..2000 {
             let s = Sphere {
                 centre: DVec3::new(rnd(), rnd(), rnd()) * 10.0,
@@ -160,6 +154,16 @@ mod tests {
                 };
                 assert!(exact <= bound + 1e-12, "{exact} > {bound}");
             }
+        }
+    }
+
+    /// Uniform numbers in [0, 1) from a fixed seed (a linear congruential generator).
+    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
+        move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
         }
     }
 
@@ -188,13 +192,7 @@ mod tests {
     /// angles); `None` nearer.
     #[test]
     fn point_estimate_is_close_to_the_polygon_form_factor() {
-        let mut seed = 777u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = uniform(777);
         let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
         let (mut checked, mut near) = (0, 0);
         for _ in 0..4000 {
