@@ -12,6 +12,13 @@
 //! (`Tri`), so a leaf's primitive index is the record's index; the traversal is obvhs'
 //! `traverse!` with our own node test [`node_hits`] (SSE2, same arithmetic as obvhs', but boxes
 //! culled behind half the box padding instead of 1e-4: `node_hits_keeps_every_child_obvhs_keeps`).
+//!
+//! Shadow cache: each thread remembers the occluder that last blocked one of its segments
+//! (`LAST_BLOCKER`) and tests it before traversing (a solve traces a receiver point against many
+//! points of one source, so what blocked the last ray mostly blocks the next). The cache only
+//! decides which triangle is tested first: a segment is blocked when some triangle blocks it
+//! under the same test, so the verdict is the traversal's (pinned by the brute-force twins, which
+//! run with whatever the cache holds, including an index left by another `Visibility`).
 
 use glam::{DVec3, UVec2, Vec3A};
 use obvhs::{
@@ -20,6 +27,7 @@ use obvhs::{
     ray::Ray,
     Boundable, BvhBuildParams,
 };
+use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Hits closer than this fraction of the scene diagonal to a segment end are ignored.
@@ -170,24 +178,38 @@ impl Visibility {
             0.5 * self.box_padding,
             tmax as f32 * (1.0 + 1e-6) + 1e-30,
         );
+        let blocks = |tri: &Tri| {
+            tri.face != ignore[0]
+                && tri.face != ignore[1]
+                && intersect_edges(p, dir, tri.v0, tri.e1, tri.e2)
+                    .is_some_and(|t| t > tmin && t < tmax)
+        };
+        // Any index is safe: a triangle of this structure that blocks the segment is a verdict.
+        let last = LAST_BLOCKER.with(Cell::get);
+        if self.tris.get(last as usize).is_some_and(blocks) {
+            return false;
+        }
         let mut state = bvh.new_traversal(ray.direction);
         let mut node;
         let mut visible = true;
         'traversal: {
             obvhs::traverse!(bvh, node, state, node_hits(node, &ray, state.oct_inv4), {
-                let tri = &self.tris[state.primitive_id as usize];
-                if tri.face != ignore[0] && tri.face != ignore[1] {
-                    if let Some(t) = intersect_edges(p, dir, tri.v0, tri.e1, tri.e2) {
-                        if t > tmin && t < tmax {
-                            visible = false;
-                            break 'traversal;
-                        }
-                    }
+                if blocks(&self.tris[state.primitive_id as usize]) {
+                    visible = false;
+                    LAST_BLOCKER.with(|c| c.set(state.primitive_id));
+                    break 'traversal;
                 }
             });
         }
         visible
     }
+}
+
+thread_local! {
+    /// Index in `Visibility::tris` of the occluder that last blocked a segment on this thread,
+    /// tested first by the next segment (`u32::MAX`: none yet). Shared by every `Visibility` the
+    /// thread uses: an index from another one only costs a wasted test.
+    static LAST_BLOCKER: Cell<u32> = const { Cell::new(u32::MAX) };
 }
 
 /// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
@@ -453,6 +475,44 @@ mod tests {
             blocked[brute as usize] += 1;
         }
         assert!(blocked[0] > 1000 && blocked[1] > 1000, "{blocked:?}");
+    }
+
+    /// Whatever occluder the shadow cache holds (each of the structure's, one past them, none),
+    /// the verdict is the brute force's, ignored faces included: segments from the block's
+    /// bottom face (ignored) to random points of the room.
+    #[test]
+    fn shadow_cache_changes_no_verdict() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let v = Visibility::new(tris.clone(), 3.0);
+        let eps = v.end_epsilon();
+        let bottom = 6 + 4; // `sides` order: the block's side at `lo` along x and y
+        let mut state = 0x5eedu64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut blocked = [0usize; 2];
+        for _ in 0..300 {
+            let p = DVec3::new(0.7 + rnd() * 0.5, 0.1 + rnd() * 0.6, 0.4);
+            let q = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+            let ignore = [bottom, u32::MAX];
+            let (len, dir) = ((q - p).length(), (q - p).normalize());
+            let brute = tris.iter().any(|(t, f)| {
+                *f != bottom && intersect(p, dir, t).is_some_and(|h| h > eps && h < len - eps)
+            });
+            for cached in (0..=v.tris.len() as u32).chain([u32::MAX]) {
+                LAST_BLOCKER.with(|c| c.set(cached));
+                assert_eq!(
+                    !v.visible(p, q, ignore),
+                    brute,
+                    "{p} -> {q}, cache {cached}"
+                );
+            }
+            blocked[brute as usize] += 1;
+        }
+        assert!(blocked[0] > 30 && blocked[1] > 30, "{blocked:?}");
     }
 
     /// [`node_hits`] passes every child obvhs' own node test passes (the segment test's near
