@@ -6,9 +6,28 @@
 //! `end_epsilon = ENDPOINT_EPSILON_REL * scene diagonal` of either end of a segment do not count.
 //! Boxes are padded by `BOX_PADDING_REL * diagonal` (unpadded boxes on axis-aligned walls are slow
 //! and f32 rounding could miss grazing hits). Intersection is done in `f64`.
+//!
+//! Layout for speed (the shadow rays are most of a solve): the BVH is built with obvhs' slowest,
+//! best preset; the occluders are stored in the BVH's leaf order, as first vertex, edges and face
+//! (`Tri`), so a leaf's primitive index is the record's index; the traversal is obvhs'
+//! `traverse!` with our own node test [`node_hits`] (SSE2, same arithmetic as obvhs', but boxes
+//! culled behind half the box padding instead of 1e-4: `node_hits_keeps_every_child_obvhs_keeps`).
+//!
+//! Shadow cache: each thread remembers the occluder that last blocked one of its segments
+//! (`LAST_BLOCKER`) and tests it before traversing (a solve traces a receiver point against many
+//! points of one source, so what blocked the last ray mostly blocks the next). The cache only
+//! decides which triangle is tested first: a segment is blocked when some triangle blocks it
+//! under the same test, so the verdict is the traversal's (pinned by the brute-force twins, which
+//! run with whatever the cache holds, including an index left by another `Visibility`).
 
-use glam::{DVec3, Vec3A};
-use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
+use glam::{DVec3, UVec2, Vec3A};
+use obvhs::{
+    aabb::Aabb,
+    cwbvh::{node::CwBvhNode, CwBvh},
+    ray::Ray,
+    Boundable, BvhBuildParams,
+};
+use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Hits closer than this fraction of the scene diagonal to a segment end are ignored.
@@ -16,12 +35,22 @@ pub const ENDPOINT_EPSILON_REL: f64 = 1e-6;
 /// BVH boxes are padded by this fraction of the scene diagonal.
 pub const BOX_PADDING_REL: f64 = 1e-5;
 
-/// One occluding triangle, tagged with the face it belongs to.
+/// One occluding triangle, tagged with the face it belongs to: the BVH builder's input.
 #[derive(Debug, Clone, Copy)]
-pub struct Occluder {
-    pub vertices: [DVec3; 3],
-    pub face: u32,
+struct Occluder {
+    vertices: [DVec3; 3],
+    face: u32,
     aabb: Aabb,
+}
+
+/// An occluder as the segment test reads it: first vertex, edges (`v1 - v0`, `v2 - v0`) and face,
+/// stored in the BVH's leaf order (the traversal's primitive index is its index: no indirection).
+#[derive(Debug, Clone, Copy)]
+struct Tri {
+    v0: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    face: u32,
 }
 
 impl Boundable for Occluder {
@@ -32,16 +61,19 @@ impl Boundable for Occluder {
 
 /// The scene's occluders and their BVH.
 pub struct Visibility {
-    occluders: Vec<Occluder>,
+    /// In BVH leaf order (`bvh.primitive_indices` applied).
+    tris: Vec<Tri>,
     bvh: Option<CwBvh>,
     end_epsilon: f64,
+    /// `BOX_PADDING_REL * diagonal`, the nearest exit of a box the node test keeps.
+    box_padding: f32,
     rays: AtomicU64,
 }
 
 impl std::fmt::Debug for Visibility {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Visibility")
-            .field("occluders", &self.occluders.len())
+            .field("occluders", &self.tris.len())
             .finish()
     }
 }
@@ -67,21 +99,39 @@ impl Visibility {
         } else {
             Some(obvhs::cwbvh::builder::build_cwbvh(
                 &occluders,
-                BvhBuildParams::medium_build(),
+                BvhBuildParams::very_slow_build(),
                 &mut std::time::Duration::default(),
             ))
         };
+        let tris = match &bvh {
+            Some(bvh) => bvh
+                .primitive_indices
+                .iter()
+                .map(|&i| {
+                    let o = &occluders[i as usize];
+                    let [v0, v1, v2] = o.vertices;
+                    Tri {
+                        v0,
+                        e1: v1 - v0,
+                        e2: v2 - v0,
+                        face: o.face,
+                    }
+                })
+                .collect(),
+            None => Vec::new(),
+        };
         Visibility {
-            occluders,
+            tris,
             bvh,
             end_epsilon: ENDPOINT_EPSILON_REL * diagonal,
+            box_padding: pad,
             rays: AtomicU64::new(0),
         }
     }
 
     /// Number of occluding triangles in the BVH.
     pub fn occluder_count(&self) -> usize {
-        self.occluders.len()
+        self.tris.len()
     }
 
     /// The distance from either end of a segment within which hits do not count.
@@ -121,23 +171,130 @@ impl Visibility {
         let dir = d / len;
         let tmin = self.end_epsilon;
         let tmax = len - self.end_epsilon;
+        // A box the ray leaves before half the padding cannot hold a counted hit (`node_hits`).
         let ray = Ray::new(
             p.as_vec3a(),
             dir.as_vec3a(),
-            0.0,
+            0.5 * self.box_padding,
             tmax as f32 * (1.0 + 1e-6) + 1e-30,
         );
-        bvh.ray_traverse_miss(ray, |_, id| {
-            let occ = &self.occluders[bvh.primitive_indices[id] as usize];
-            if occ.face == ignore[0] || occ.face == ignore[1] {
-                return f32::INFINITY;
-            }
-            match intersect(p, dir, &occ.vertices) {
-                Some(t) if t > tmin && t < tmax => 0.0,
-                _ => f32::INFINITY,
-            }
-        })
+        let blocks = |tri: &Tri| {
+            tri.face != ignore[0]
+                && tri.face != ignore[1]
+                && intersect_edges(p, dir, tri.v0, tri.e1, tri.e2)
+                    .is_some_and(|t| t > tmin && t < tmax)
+        };
+        // Any index is safe: a triangle of this structure that blocks the segment is a verdict.
+        let last = LAST_BLOCKER.with(Cell::get);
+        if self.tris.get(last as usize).is_some_and(blocks) {
+            return false;
+        }
+        let mut state = bvh.new_traversal(ray.direction);
+        let mut node;
+        let mut visible = true;
+        'traversal: {
+            obvhs::traverse!(bvh, node, state, node_hits(node, &ray, state.oct_inv4), {
+                if blocks(&self.tris[state.primitive_id as usize]) {
+                    visible = false;
+                    LAST_BLOCKER.with(|c| c.set(state.primitive_id));
+                    break 'traversal;
+                }
+            });
+        }
+        visible
     }
+}
+
+thread_local! {
+    /// Index in `Visibility::tris` of the occluder that last blocked a segment on this thread,
+    /// tested first by the next segment (`u32::MAX`: none yet). Shared by every `Visibility` the
+    /// thread uses: an index from another one only costs a wasted test.
+    static LAST_BLOCKER: Cell<u32> = const { Cell::new(u32::MAX) };
+}
+
+/// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
+/// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the 8-bit child planes widened
+/// four at a time by SSE2 unpacks instead of one scalar conversion each, and boxes the ray leaves
+/// before `ray.tmin` culled (obvhs culls before 1e-4 in scene units whatever the scene's size).
+/// The segment test sets `tmin` to half the box padding: a hit counted at `t > end_epsilon` lies
+/// in a box padded by `BOX_PADDING_REL * diagonal` on every side, which the ray leaves after
+/// `t + padding`; the other half covers f32 rounding (coordinates within 80 diagonals of the
+/// origin). Pinned by
+/// `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    use std::arch::x86_64::*;
+    let adj_inv = node.compute_extent() * ray.inv_direction;
+    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    // SAFETY: SSE2 is part of the x86_64 baseline; the loads read 8 bytes of [u8; 8] fields.
+    let mask = unsafe {
+        // The eight planes as two vectors of four f32.
+        let widen = |q: &[u8; 8]| {
+            let bytes = _mm_loadl_epi64(q.as_ptr() as *const __m128i);
+            let words = _mm_unpacklo_epi8(bytes, _mm_setzero_si128());
+            (
+                _mm_cvtepi32_ps(_mm_unpacklo_epi16(words, _mm_setzero_si128())),
+                _mm_cvtepi32_ps(_mm_unpackhi_epi16(words, _mm_setzero_si128())),
+            )
+        };
+        let slab = |lo: &[u8; 8], hi: &[u8; 8], neg: bool, scale: f32, offset: f32| {
+            let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
+            let (n0, n1) = widen(near);
+            let (f0, f1) = widen(far);
+            let (s, o) = (_mm_set1_ps(scale), _mm_set1_ps(offset));
+            (
+                _mm_add_ps(_mm_mul_ps(n0, s), o),
+                _mm_add_ps(_mm_mul_ps(n1, s), o),
+                _mm_add_ps(_mm_mul_ps(f0, s), o),
+                _mm_add_ps(_mm_mul_ps(f1, s), o),
+            )
+        };
+        let d = ray.direction;
+        let (xn0, xn1, xf0, xf1) = slab(
+            &node.child_min_x,
+            &node.child_max_x,
+            d.x < 0.0,
+            adj_inv.x,
+            adj_orig.x,
+        );
+        let (yn0, yn1, yf0, yf1) = slab(
+            &node.child_min_y,
+            &node.child_max_y,
+            d.y < 0.0,
+            adj_inv.y,
+            adj_orig.y,
+        );
+        let (zn0, zn1, zf0, zf1) = slab(
+            &node.child_min_z,
+            &node.child_max_z,
+            d.z < 0.0,
+            adj_inv.z,
+            adj_orig.z,
+        );
+        let (eps, tmax) = (_mm_set1_ps(ray.tmin), _mm_set1_ps(ray.tmax));
+        let near0 = _mm_max_ps(_mm_max_ps(xn0, _mm_max_ps(yn0, zn0)), eps);
+        let near1 = _mm_max_ps(_mm_max_ps(xn1, _mm_max_ps(yn1, zn1)), eps);
+        let far0 = _mm_min_ps(_mm_min_ps(xf0, _mm_min_ps(yf0, zf0)), tmax);
+        let far1 = _mm_min_ps(_mm_min_ps(xf1, _mm_min_ps(yf1, zf1)), tmax);
+        (_mm_movemask_ps(_mm_cmple_ps(near0, far0))
+            | (_mm_movemask_ps(_mm_cmple_ps(near1, far1)) << 4)) as u32
+    };
+    let mut hits = 0;
+    let mut m = mask;
+    while m != 0 {
+        let i = m.trailing_zeros() as u64 * 8;
+        hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
+        m &= m - 1;
+    }
+    hits
+}
+
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    node.intersect_ray(ray, oct_inv4)
 }
 
 /// Most point-plane tests [`bounding_planes`] makes; past it, the remaining planes are kept as
@@ -205,15 +362,20 @@ fn bounding_planes_within(
 /// Möller-Trumbore in f64; returns the ray parameter of the hit (edges inclusive).
 #[inline]
 pub(crate) fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64> {
-    let e1 = v[1] - v[0];
-    let e2 = v[2] - v[0];
+    intersect_edges(origin, dir, v[0], v[1] - v[0], v[2] - v[0])
+}
+
+/// [`intersect`] of the triangle with first vertex `v0` and edges `e1 = v1 - v0`, `e2 = v2 - v0`
+/// (the same operations in the same order: the same verdicts, bit for bit).
+#[inline(always)]
+fn intersect_edges(origin: DVec3, dir: DVec3, v0: DVec3, e1: DVec3, e2: DVec3) -> Option<f64> {
     let p = dir.cross(e2);
     let det = e1.dot(p);
     if det.abs() < 1e-300 {
         return None;
     }
     let inv = 1.0 / det;
-    let s = origin - v[0];
+    let s = origin - v0;
     let a = s.dot(p) * inv;
     if !(-1e-12..=1.0 + 1e-12).contains(&a) {
         return None;
@@ -276,6 +438,111 @@ mod tests {
             let brute_blocked = (0.0..=1.0).contains(&h.x) && (0.0..=1.0).contains(&h.y);
             assert_eq!(!v.visible(p, q, [u32::MAX; 2]), brute_blocked, "{p} {q}");
         }
+    }
+
+    /// The traversal (with [`node_hits`]) gives the verdict of a brute-force test of every
+    /// triangle, for segments between random points of a furnished room.
+    #[test]
+    fn traversal_matches_brute_force_in_a_room() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let diagonal = 3.0;
+        let v = Visibility::new(tris.clone(), diagonal);
+        let eps = v.end_epsilon();
+        let mut state = 0x0dd_ba11u64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut blocked = [0usize; 2];
+        for i in 0..20_000 {
+            let mut point = || DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+            let (p, q) = (point(), point());
+            // Every third segment starts on the block's bottom face.
+            let p = if i % 3 == 0 {
+                DVec3::new(p.x, p.y, 0.4)
+            } else {
+                p
+            };
+            let len = (q - p).length();
+            let dir = (q - p) / len;
+            let brute = len > 2.0 * eps
+                && tris
+                    .iter()
+                    .any(|(t, _)| intersect(p, dir, t).is_some_and(|h| h > eps && h < len - eps));
+            assert_eq!(!v.visible(p, q, [u32::MAX; 2]), brute, "{p} -> {q}");
+            blocked[brute as usize] += 1;
+        }
+        assert!(blocked[0] > 1000 && blocked[1] > 1000, "{blocked:?}");
+    }
+
+    /// Whatever occluder the shadow cache holds (each of the structure's, one past them, none),
+    /// the verdict is the brute force's, ignored faces included: segments from the block's
+    /// bottom face (ignored) to random points of the room.
+    #[test]
+    fn shadow_cache_changes_no_verdict() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let v = Visibility::new(tris.clone(), 3.0);
+        let eps = v.end_epsilon();
+        let bottom = 6 + 4; // `sides` order: the block's side at `lo` along x and y
+        let mut state = 0x5eedu64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut blocked = [0usize; 2];
+        for _ in 0..300 {
+            let p = DVec3::new(0.7 + rnd() * 0.5, 0.1 + rnd() * 0.6, 0.4);
+            let q = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+            let ignore = [bottom, u32::MAX];
+            let (len, dir) = ((q - p).length(), (q - p).normalize());
+            let brute = tris.iter().any(|(t, f)| {
+                *f != bottom && intersect(p, dir, t).is_some_and(|h| h > eps && h < len - eps)
+            });
+            for cached in (0..=v.tris.len() as u32).chain([u32::MAX]) {
+                LAST_BLOCKER.with(|c| c.set(cached));
+                assert_eq!(
+                    !v.visible(p, q, ignore),
+                    brute,
+                    "{p} -> {q}, cache {cached}"
+                );
+            }
+            blocked[brute as usize] += 1;
+        }
+        assert!(blocked[0] > 30 && blocked[1] > 30, "{blocked:?}");
+    }
+
+    /// [`node_hits`] passes every child obvhs' own node test passes (the segment test's near
+    /// limit, half the box padding, being under obvhs' 1e-4 in this room), on every node of a BVH
+    /// for rays from random points in random directions.
+    #[test]
+    fn node_hits_keeps_every_child_obvhs_keeps() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let v = Visibility::new(tris, 3.0);
+        let bvh = v.bvh.as_ref().expect("a BVH");
+        let mut state = 0xb0c5u64;
+        let mut rnd = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let mut passed = 0usize;
+        for _ in 0..2000 {
+            let origin = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
+            let dir = Vec3A::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5).normalize();
+            let ray = Ray::new(origin, dir, 0.5 * v.box_padding, rnd() * 3.0);
+            let oct = bvh.new_traversal(dir).oct_inv4;
+            for node in &bvh.nodes {
+                let (ours, theirs) = (node_hits(node, &ray, oct), node.intersect_ray(&ray, oct));
+                assert_eq!(theirs & !ours, 0, "{node:?} {ray:?}");
+                passed += theirs.count_ones() as usize;
+            }
+        }
+        assert!(passed > 0);
     }
 
     /// `(triangle, face)` pairs.
