@@ -39,7 +39,8 @@ pub use mask::FaceMask;
 pub use reflectance::{FaceTexture, ReflectanceMap};
 pub use trapezoidal_map::{Location, MapError, TrapezoidalMap};
 
-use crate::faces::{Face, FaceId, FaceKind, FaceSet};
+pub use crate::faces::FaceId;
+use crate::faces::{Face, FaceKind, FaceSet};
 use crate::scene::{Rgb, Scene};
 use glam::{DVec2, DVec3};
 use std::sync::Arc;

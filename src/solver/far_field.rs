@@ -171,7 +171,7 @@ mod tests {
     fn parallelogram_root(origin: DVec3, u: DVec3, v: DVec3) -> ElementRoot {
         let cross = u.cross(v);
         ElementRoot {
-            face: crate::faces::FaceId(0),
+            face: crate::domain::FaceId(0),
             side: crate::domain::Side::Front,
             shape: Shape::Parallelogram,
             frame: crate::domain::Frame { origin, u, v },
