@@ -392,6 +392,16 @@ fn intersect_edges(origin: DVec3, dir: DVec3, v0: DVec3, e1: DVec3, e2: DVec3) -
 mod tests {
     use super::*;
 
+    /// Uniform numbers in [0, 1) from a xorshift generator seeded with `state` (not 0).
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     fn wall() -> Vec<([DVec3; 3], u32)> {
         // A unit square in the plane z = 0.5, two triangles of face 7.
         let a = DVec3::new(0.0, 0.0, 0.5);
@@ -448,13 +458,7 @@ mod tests {
         let diagonal = 3.0;
         let v = Visibility::new(tris.clone(), diagonal);
         let eps = v.end_epsilon();
-        let mut state = 0x0dd_ba11u64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = xorshift(0x0dd_ba11);
         let mut blocked = [0usize; 2];
         for i in 0..20_000 {
             let mut point = || DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
@@ -486,13 +490,7 @@ mod tests {
         let v = Visibility::new(tris.clone(), 3.0);
         let eps = v.end_epsilon();
         let bottom = 6 + 4; // `sides` order: the block's side at `lo` along x and y
-        let mut state = 0x5eedu64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = xorshift(0x5eed);
         let mut blocked = [0usize; 2];
         for _ in 0..300 {
             let p = DVec3::new(0.7 + rnd() * 0.5, 0.1 + rnd() * 0.6, 0.4);
@@ -523,13 +521,8 @@ mod tests {
         let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
         let v = Visibility::new(tris, 3.0);
         let bvh = v.bvh.as_ref().expect("a BVH");
-        let mut state = 0xb0c5u64;
-        let mut rnd = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f32 / (1u64 << 53) as f32
-        };
+        let mut next = xorshift(0xb0c5);
+        let mut rnd = || next() as f32;
         let mut passed = 0usize;
         for _ in 0..2000 {
             let origin = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
@@ -650,13 +643,7 @@ mod tests {
                 tris.iter().copied().filter(|(_, f)| !bounds[*f as usize]),
                 diagonal,
             );
-            let mut state = seed | 1;
-            let mut rnd = || {
-                state ^= state << 13;
-                state ^= state >> 7;
-                state ^= state << 17;
-                (state >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut rnd = xorshift(seed | 1);
             let point_on_face = |rnd: &mut dyn FnMut() -> f64| {
                 let (t, f) = tris[(rnd() * tris.len() as f64) as usize % tris.len()];
                 let (mut a, mut b) = (rnd(), rnd());
