@@ -227,6 +227,22 @@ fn bad_input(message: impl std::fmt::Display) -> ExitCode {
     ExitCode::from(2)
 }
 
+/// Reads and parses an optional input file (`--probes`, `--segments`); an unreadable or invalid
+/// file is bad input, reported with its path.
+fn read_input_file<T>(
+    path: Option<&std::path::Path>,
+    parse: impl FnOnce(&[u8]) -> Result<T, String>,
+) -> Result<Option<T>, ExitCode> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    std::fs::read(path)
+        .map_err(|e| e.to_string())
+        .and_then(|b| parse(&b))
+        .map(Some)
+        .map_err(|e| bad_input(format!("{}: {e}", path.display())))
+}
+
 fn internal(message: impl std::fmt::Display) -> ExitCode {
     eprintln!("wavrad: internal error: {message}");
     ExitCode::from(1)
@@ -262,15 +278,9 @@ fn solve(a: SolveArgs, log_format: &str) -> ExitCode {
     if let Err(e) = params.validate() {
         return bad_input(e);
     }
-    let probes = match &a.probes {
-        None => None,
-        Some(path) => match std::fs::read(path)
-            .map_err(|e| e.to_string())
-            .and_then(|b| parse_probes(&b))
-        {
-            Ok(p) => Some(p),
-            Err(e) => return bad_input(format!("{}: {e}", path.display())),
-        },
+    let probes = match read_input_file(a.probes.as_deref(), parse_probes) {
+        Ok(p) => p,
+        Err(code) => return code,
     };
     let scene = match load(&a.scene, a.max_triangles) {
         Ok(s) => s,

@@ -3,7 +3,7 @@
 //! `sweep` runs the speed-accuracy grid (`crate::bench::sweep`). Same exit codes as every command:
 //! 0 success, 2 bad input, 1 internal failure.
 
-use super::{bad_input, internal, load, DEFAULT_MAX_TRIANGLES};
+use super::{bad_input, internal, load, read_input_file, DEFAULT_MAX_TRIANGLES};
 use clap::{Args, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -121,15 +121,9 @@ pub(super) fn visibility(a: VisibilityArgs) -> ExitCode {
     if a.threads == 0 {
         return bad_input("--threads must be at least 1");
     }
-    let segments = match &a.segments {
-        None => None,
-        Some(path) => match std::fs::read(path)
-            .map_err(|e| e.to_string())
-            .and_then(|b| parse_segments(&b))
-        {
-            Ok(s) => Some(s),
-            Err(e) => return bad_input(format!("{}: {e}", path.display())),
-        },
+    let segments = match read_input_file(a.segments.as_deref(), parse_segments) {
+        Ok(s) => s,
+        Err(code) => return code,
     };
     let start = std::time::Instant::now();
     let scene = match load(&a.scene, a.max_triangles) {
