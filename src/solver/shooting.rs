@@ -266,6 +266,7 @@ fn shoot_lights(
     reporter: &mut Reporter,
 ) -> u64 {
     let mut shots = 0;
+    let rho = mean_reflectance(ctx.roots);
     for light in lights {
         if ctx.cancel.load(Ordering::Relaxed) {
             break;
@@ -285,7 +286,7 @@ fn shoot_lights(
                     left: lights.len() - 1 - shots as usize,
                 },
                 power,
-                returns: power * mean_reflectance(ctx.roots),
+                returns: power * rho,
             },
         );
         let receivers = hierarchies.iter().filter(|h| !h.nodes.is_empty()).count() as u64;
@@ -484,7 +485,8 @@ fn shoot(
             .zip(unshot.par_iter_mut())
             .enumerate()
             .for_each(|(ri, (h, power))| {
-                if !visits(ri, h) {
+                // Not visited (`received` marks it -1): it does not face the shooter.
+                if received[ri] < 0.0 {
                     return;
                 }
                 if ctx.past_deadline() {
