@@ -58,11 +58,16 @@ fn tools() -> Option<(PathBuf, PathBuf)> {
 }
 
 fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    free_ports::<1>()[0]
+}
+
+/// `N` distinct free ports: every listener is held until all are bound, so the kernel cannot
+/// hand out the same ephemeral port twice (which once gave SeaweedFS's filer and its S3 gRPC
+/// gateway one port and failed a CI run).
+fn free_ports<const N: usize>() -> [u16; N] {
+    let listeners: [std::net::TcpListener; N] =
+        std::array::from_fn(|_| std::net::TcpListener::bind("127.0.0.1:0").unwrap());
+    listeners.map(|l| l.local_addr().unwrap().port())
 }
 
 fn is_root() -> bool {
@@ -161,25 +166,46 @@ struct Seaweed {
 }
 
 impl Seaweed {
+    /// Starts the server, again on fresh ports if it exits while starting (a port taken by
+    /// another process between choosing and binding it), at most three times.
     async fn start(weed: &Path, root: &Path) -> Seaweed {
         let dir = root.join("weed");
         std::fs::create_dir_all(&dir).unwrap();
-        let s3_port = free_port();
-        let port = |name: &str| format!("-{name}={}", free_port());
+        let log = root.join("weed.log");
+        for attempt in 1..=3 {
+            let mut weed = Seaweed::spawn(weed, &dir, &log);
+            match weed.make_bucket().await {
+                Ok(()) => return weed,
+                Err(status) => {
+                    eprintln!(
+                        "SeaweedFS start {attempt} of 3 failed ({status}); see {}",
+                        log.display()
+                    );
+                    let _ = weed.child.kill();
+                    let _ = weed.child.wait();
+                }
+            }
+        }
+        panic!("SeaweedFS did not start; see {}", log.display());
+    }
+
+    fn spawn(weed: &Path, dir: &Path, log: &Path) -> Seaweed {
+        let [s3, master, master_grpc, volume, volume_grpc, filer, filer_grpc, s3_grpc] =
+            free_ports::<8>();
         let child = Command::new(weed)
             .arg("server")
             .arg(format!("-dir={}", dir.display()))
             .args(["-ip=127.0.0.1", "-ip.bind=127.0.0.1", "-filer", "-s3"])
             .args([
-                port("master.port"),
-                port("master.port.grpc"),
-                port("volume.port"),
-                port("volume.port.grpc"),
-                port("filer.port"),
-                port("filer.port.grpc"),
-                port("s3.port.grpc"),
+                format!("-master.port={master}"),
+                format!("-master.port.grpc={master_grpc}"),
+                format!("-volume.port={volume}"),
+                format!("-volume.port.grpc={volume_grpc}"),
+                format!("-filer.port={filer}"),
+                format!("-filer.port.grpc={filer_grpc}"),
+                format!("-s3.port.grpc={s3_grpc}"),
             ])
-            .arg(format!("-s3.port={s3_port}"))
+            .arg(format!("-s3.port={s3}"))
             .args([
                 "-s3.port.iceberg=0",
                 "-s3.port.lance=0",
@@ -188,29 +214,33 @@ impl Seaweed {
                 "-metricsPort=0",
             ])
             .stdout(Stdio::null())
-            .stderr(std::fs::File::create(root.join("weed.log")).unwrap())
+            .stderr(std::fs::File::create(log).unwrap())
             .spawn()
             .unwrap();
-        let weed = Seaweed { child, s3_port };
-        // The bucket, once the gateway answers (anonymous: no identities configured).
+        Seaweed { child, s3_port: s3 }
+    }
+
+    /// Makes the bucket once the gateway answers (anonymous: no identities configured); an
+    /// error if the server exits or does not answer within 60 s.
+    async fn make_bucket(&mut self) -> Result<(), String> {
         let http = client();
         let start = Instant::now();
         loop {
             let made = http
-                .put(format!("{}/{BUCKET}", weed.endpoint()))
+                .put(format!("{}/{BUCKET}", self.endpoint()))
                 .send()
                 .await;
             if made.is_ok_and(|r| r.status().is_success()) {
-                break;
+                return Ok(());
             }
-            assert!(
-                start.elapsed() < Duration::from_secs(60),
-                "SeaweedFS did not start; see {}",
-                root.join("weed.log").display()
-            );
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Err(format!("exited with {status}"));
+            }
+            if start.elapsed() > Duration::from_secs(60) {
+                return Err("no answer in 60 s".into());
+            }
             tokio::time::sleep(Duration::from_millis(250)).await;
         }
-        weed
     }
 
     fn endpoint(&self) -> String {
