@@ -10,4 +10,5 @@
 
 pub mod chart;
 pub mod sweep;
+pub mod sweep_report;
 pub mod visibility;
