@@ -90,6 +90,8 @@ fn eta_quality(stderr: &str, total: f64) -> String {
     let mut lines = 0;
     let mut judged = 0;
     let mut worst: f64 = 0.0;
+    // Where the worst ratio was: (seconds, eta, seconds really left).
+    let mut at = (0.0, 0.0, 0.0);
     for line in stderr.lines() {
         let Ok(v) = serde_json::from_str::<Value>(line) else {
             continue;
@@ -104,16 +106,22 @@ fn eta_quality(stderr: &str, total: f64) -> String {
         }
         judged += 1;
         let r = eta / remaining;
-        worst = worst.max(if r > 0.0 {
+        let off = if r > 0.0 {
             r.max(1.0 / r)
         } else {
             f64::INFINITY
-        });
+        };
+        if off > worst {
+            (worst, at) = (off, (seconds, eta, remaining));
+        }
     }
     match (lines, judged) {
         (0, _) => "no ETA lines".into(),
         (n, 0) => format!("no ETA line after 20 % ({n} lines)"),
-        (_, k) => format!("worst x{worst:.2} ({k} lines)"),
+        (_, k) => format!(
+            "worst x{worst:.2} ({k} lines; at {:.1} s: {:.1} s foreseen, {:.1} s left)",
+            at.0, at.1, at.2
+        ),
     }
 }
 
