@@ -328,7 +328,17 @@ impl Source for ElementSource<'_> {
         let mut front_points = 0usize;
         let (mut front_weight, mut front_visible) = (0.0, 0.0);
         let visibility = self.shot.visibility;
+        // One packet of shadow rays, to the rule's points that emit.
+        let mut targets = [DVec3::ZERO; POINTS];
         let mut rays = 0;
+        for l in 0..self.rule.len() {
+            if alpha[l] > 0.0 {
+                targets[rays] = self.ys_vis[l];
+                rays += 1;
+            }
+        }
+        let mut seen = visibility.visible_from(x, &targets[..rays], ignore);
+        visibility.count_rays(rays as u64);
         for (l, ql) in self.rule.iter().enumerate() {
             if alpha[l] <= 0.0 {
                 continue;
@@ -337,8 +347,8 @@ impl Source for ElementSource<'_> {
                 * sp.area
                 * ql.weight
                 * alpha[l];
-            rays += 1;
-            let vis = visibility.visible_uncounted(x, self.ys_vis[l], ignore);
+            let vis = seen & 1 == 1;
+            seen >>= 1;
             if vis {
                 out.any_visible = true;
                 visible_weight += ql.weight * alpha[l];
@@ -357,7 +367,6 @@ impl Source for ElementSource<'_> {
                 }
             }
         }
-        visibility.count_rays(rays);
         if front_weight > 0.0 {
             // Mixed verdicts at this point, among the source points it exchanges light with:
             // its share of the source is only as good as the source's samples.

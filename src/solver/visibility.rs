@@ -163,38 +163,25 @@ impl Visibility {
     /// line every core writes (a tenth of a solve's time on two cores, found by profiling).
     pub(crate) fn visible_uncounted(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
         let Some(bvh) = &self.bvh else { return true };
-        let d = q - p;
-        let len = d.length();
-        if len <= 2.0 * self.end_epsilon {
+        let Some(seg) = self.segment(p, q) else {
             return true;
-        }
-        let dir = d / len;
-        let tmin = self.end_epsilon;
-        let tmax = len - self.end_epsilon;
-        // A box the ray leaves before half the padding cannot hold a counted hit (`node_hits`).
-        let ray = Ray::new(
-            p.as_vec3a(),
-            dir.as_vec3a(),
-            0.5 * self.box_padding,
-            tmax as f32 * (1.0 + 1e-6) + 1e-30,
-        );
-        let blocks = |tri: &Tri| {
-            tri.face != ignore[0]
-                && tri.face != ignore[1]
-                && intersect_edges(p, dir, tri.v0, tri.e1, tri.e2)
-                    .is_some_and(|t| t > tmin && t < tmax)
         };
         // Any index is safe: a triangle of this structure that blocks the segment is a verdict.
         let last = LAST_BLOCKER.with(Cell::get);
-        if self.tris.get(last as usize).is_some_and(blocks) {
+        if self
+            .tris
+            .get(last as usize)
+            .is_some_and(|t| seg.blocked_by(t, ignore))
+        {
             return false;
         }
+        let ray = &seg.ray;
         let mut state = bvh.new_traversal(ray.direction);
         let mut node;
         let mut visible = true;
         'traversal: {
-            obvhs::traverse!(bvh, node, state, node_hits(node, &ray, state.oct_inv4), {
-                if blocks(&self.tris[state.primitive_id as usize]) {
+            obvhs::traverse!(bvh, node, state, node_hits(node, ray, state.oct_inv4), {
+                if seg.blocked_by(&self.tris[state.primitive_id as usize], ignore) {
                     visible = false;
                     LAST_BLOCKER.with(|c| c.set(state.primitive_id));
                     break 'traversal;
@@ -203,9 +190,159 @@ impl Visibility {
         }
         visible
     }
+
+    /// Which of the open segments from `p` to each of `targets` (at most 64) nothing but the
+    /// faces in `ignore` blocks: bit `i` of the result set when the segment to `targets[i]` is
+    /// visible. The verdicts of [`Visibility::visible_uncounted`], segment by segment
+    /// (`packet_verdicts_are_the_single_rays`), found in one traversal of the BVH: a node is
+    /// read once for the whole packet, its children are first tested against the box of every
+    /// segment still unblocked ([`bundle_slots`]), then against each such segment's ray
+    /// ([`slot_hits`]); a segment leaves the packet at its first blocker. Not counted.
+    pub(crate) fn visible_from(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
+        debug_assert!(targets.len() <= 64, "{} targets", targets.len());
+        let all = if targets.len() >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << targets.len()) - 1
+        };
+        let Some(bvh) = &self.bvh else { return all };
+        let mut segs = [const { None }; 64];
+        let mut open = 0u64;
+        for (i, &q) in targets.iter().enumerate().take(64) {
+            segs[i] = self.segment(p, q);
+            open |= u64::from(segs[i].is_some()) << i;
+        }
+        let traced = open;
+        let seg = |i: u32| segs[i as usize].as_ref().expect("an open segment");
+        // The shadow cache, for the whole packet.
+        let last = LAST_BLOCKER.with(Cell::get);
+        if let Some(tri) = self.tris.get(last as usize) {
+            for i in bits(open) {
+                if seg(i).blocked_by(tri, ignore) {
+                    open &= !(1 << i);
+                }
+            }
+        }
+        let origin = p.as_vec3a();
+        let mut stack = PACKET_STACK.take();
+        stack.clear();
+        stack.push((0u32, open));
+        while let Some((index, mask)) = stack.pop() {
+            let mask = mask & open;
+            if mask == 0 {
+                continue;
+            }
+            let node = &bvh.nodes[index as usize];
+            // The box of the segments still open, padded for f32 rounding.
+            let (mut lo, mut hi) = (origin, origin);
+            for i in bits(mask) {
+                let end = seg(i).end;
+                (lo, hi) = (lo.min(end), hi.max(end));
+            }
+            let pad = Vec3A::splat(self.box_padding);
+            let shared = bundle_slots(node, lo - pad, hi + pad);
+            if shared == 0 {
+                continue;
+            }
+            let mut child_rays = [0u64; 8];
+            for i in bits(mask) {
+                for slot in bits(u64::from(slot_hits(node, &seg(i).ray) & shared)) {
+                    child_rays[slot as usize] |= 1 << i;
+                }
+            }
+            for (slot, &rays) in child_rays.iter().enumerate() {
+                if rays == 0 {
+                    continue;
+                }
+                if !node.is_leaf(slot) {
+                    stack.push((node.child_node_index(slot), rays));
+                    continue;
+                }
+                let (first, count) = node.child_primitives(slot);
+                for prim in first..first + count {
+                    let tri = &self.tris[prim as usize];
+                    for i in bits(rays & open) {
+                        if seg(i).blocked_by(tri, ignore) {
+                            open &= !(1 << i);
+                            LAST_BLOCKER.with(|c| c.set(prim));
+                        }
+                    }
+                }
+            }
+            if open == 0 {
+                break;
+            }
+        }
+        PACKET_STACK.set(stack);
+        // Visible: the segments too short to block, and those traced that stayed open.
+        all & !(traced & !open)
+    }
+
+    /// The open segment `p`-`q` as the tests read it; `None` when it is within twice the end
+    /// epsilon (nothing can block it).
+    fn segment(&self, p: DVec3, q: DVec3) -> Option<Segment> {
+        let d = q - p;
+        let len = d.length();
+        if len <= 2.0 * self.end_epsilon {
+            return None;
+        }
+        let dir = d / len;
+        let tmax = len - self.end_epsilon;
+        // A box the ray leaves before half the padding cannot hold a counted hit (`node_hits`).
+        let ray = Ray::new(
+            p.as_vec3a(),
+            dir.as_vec3a(),
+            0.5 * self.box_padding,
+            tmax as f32 * (1.0 + 1e-6) + 1e-30,
+        );
+        Some(Segment {
+            p,
+            dir,
+            tmin: self.end_epsilon,
+            tmax,
+            ray,
+            end: q.as_vec3a(),
+        })
+    }
+}
+
+/// An open segment as the tests read it: its start, unit direction and the range of ray
+/// parameters where a hit counts (f64), its f32 ray for the box tests and its end.
+struct Segment {
+    p: DVec3,
+    dir: DVec3,
+    tmin: f64,
+    tmax: f64,
+    ray: Ray,
+    end: Vec3A,
+}
+
+impl Segment {
+    /// True when `tri` counts as a blocker: not of an ignored face, hit strictly within range.
+    #[inline(always)]
+    fn blocked_by(&self, tri: &Tri, ignore: [u32; 2]) -> bool {
+        tri.face != ignore[0]
+            && tri.face != ignore[1]
+            && intersect_edges(self.p, self.dir, tri.v0, tri.e1, tri.e2)
+                .is_some_and(|t| t > self.tmin && t < self.tmax)
+    }
+}
+
+/// The indices of the bits set in `mask`, lowest first.
+fn bits(mut mask: u64) -> impl Iterator<Item = u32> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros();
+            mask &= mask - 1;
+            i
+        })
+    })
 }
 
 thread_local! {
+    /// The stack of [`Visibility::visible_from`] (node, segments that reach it), kept between
+    /// calls so that a packet allocates nothing.
+    static PACKET_STACK: Cell<Vec<(u32, u64)>> = const { Cell::new(Vec::new()) };
     /// Index in `Visibility::tris` of the occluder that last blocked a segment on this thread,
     /// tested first by the next segment (`u32::MAX`: none yet). Shared by every `Visibility` the
     /// thread uses: an index from another one only costs a wasted test.
@@ -213,23 +350,38 @@ thread_local! {
 }
 
 /// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
-/// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the 8-bit child planes widened
-/// four at a time by SSE2 unpacks instead of one scalar conversion each, and boxes the ray leaves
-/// before `ray.tmin` culled (obvhs culls before 1e-4 in scene units whatever the scene's size).
-/// The segment test sets `tmin` to half the box padding: a hit counted at `t > end_epsilon` lies
-/// in a box padded by `BOX_PADDING_REL * diagonal` on every side, which the ray leaves after
-/// `t + padding`; the other half covers f32 rounding (coordinates within 80 diagonals of the
-/// origin). Pinned by
-/// `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
-#[cfg(target_arch = "x86_64")]
+/// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the child planes tested by
+/// [`slot_hits`]. Pinned by `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
 #[inline(always)]
 fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+    let mut hits = 0;
+    let mut m = slot_hits(node, ray);
+    while m != 0 {
+        let i = m.trailing_zeros() as u64 * 8;
+        hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
+        m &= m - 1;
+    }
+    hits
+}
+
+/// Which of a CWBVH node's eight child boxes the ray's slab test passes: bit `i` for the planes
+/// of child `i` (an empty slot's planes may pass: read `child_meta`). obvhs' arithmetic, with the
+/// 8-bit planes widened four at a time by SSE2 unpacks instead of one scalar conversion each,
+/// and boxes the ray leaves before `ray.tmin` culled (obvhs culls before 1e-4 in scene units
+/// whatever the scene's size). The segment test sets `tmin` to half the box padding: a hit
+/// counted at `t > end_epsilon` lies in a box padded by `BOX_PADDING_REL * diagonal` on every
+/// side, which the ray leaves after `t + padding`; the other half covers f32 rounding
+/// (coordinates within 80 diagonals of the origin). The scalar twin
+/// [`slot_hits_scalar`] gives the same bits (`slot_hits_are_the_scalar_slab_test`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
     use std::arch::x86_64::*;
     let adj_inv = node.compute_extent() * ray.inv_direction;
     let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
     // SAFETY: SSE2 is part of the x86_64 baseline; the loads read 8 bytes of [u8; 8] fields.
-    let mask = unsafe {
+    unsafe {
         // The eight planes as two vectors of four f32.
         let widen = |q: &[u8; 8]| {
             let bytes = _mm_loadl_epi64(q.as_ptr() as *const __m128i);
@@ -280,21 +432,63 @@ fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
         let far1 = _mm_min_ps(_mm_min_ps(xf1, _mm_min_ps(yf1, zf1)), tmax);
         (_mm_movemask_ps(_mm_cmple_ps(near0, far0))
             | (_mm_movemask_ps(_mm_cmple_ps(near1, far1)) << 4)) as u32
-    };
-    let mut hits = 0;
-    let mut m = mask;
-    while m != 0 {
-        let i = m.trailing_zeros() as u64 * 8;
-        hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
-        m &= m - 1;
     }
-    hits
 }
 
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
-fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    node.intersect_ray(ray, oct_inv4)
+fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
+    slot_hits_scalar(node, ray)
+}
+
+/// [`slot_hits`] one child and one axis at a time.
+#[cfg(any(test, not(target_arch = "x86_64")))]
+fn slot_hits_scalar(node: &CwBvhNode, ray: &Ray) -> u32 {
+    let adj_inv = node.compute_extent() * ray.inv_direction;
+    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    let planes = [
+        (&node.child_min_x, &node.child_max_x),
+        (&node.child_min_y, &node.child_max_y),
+        (&node.child_min_z, &node.child_max_z),
+    ];
+    let mut mask = 0;
+    for i in 0..8 {
+        let (mut near, mut far) = (ray.tmin, ray.tmax);
+        for (axis, (lo, hi)) in planes.iter().enumerate() {
+            let (a, b) = if ray.direction[axis] < 0.0 {
+                (hi[i], lo[i])
+            } else {
+                (lo[i], hi[i])
+            };
+            near = near.max(a as f32 * adj_inv[axis] + adj_orig[axis]);
+            far = far.min(b as f32 * adj_inv[axis] + adj_orig[axis]);
+        }
+        mask |= u32::from(near <= far) << i;
+    }
+    mask
+}
+
+/// Which of a CWBVH node's non-empty child boxes overlap the box `lo`-`hi` (bit `i` for child
+/// `i`): the packet's shared test, before any ray's ([`Visibility::visible_from`]). Exact up to
+/// f32 rounding of the box into the node's quantized frame (the extent is a power of two), which
+/// the caller's padding covers.
+#[inline(always)]
+fn bundle_slots(node: &CwBvhNode, lo: Vec3A, hi: Vec3A) -> u32 {
+    let origin = Vec3A::from(node.p);
+    let inv = node.compute_extent().recip();
+    let (lo, hi) = ((lo - origin) * inv, (hi - origin) * inv);
+    let mut mask = 0;
+    for i in 0..8 {
+        let overlaps = node.child_meta[i] != 0
+            && f32::from(node.child_min_x[i]) <= hi.x
+            && f32::from(node.child_max_x[i]) >= lo.x
+            && f32::from(node.child_min_y[i]) <= hi.y
+            && f32::from(node.child_max_y[i]) >= lo.y
+            && f32::from(node.child_min_z[i]) <= hi.z
+            && f32::from(node.child_max_z[i]) >= lo.z;
+        mask |= u32::from(overlaps) << i;
+    }
+    mask
 }
 
 /// Most point-plane tests [`bounding_planes`] makes; past it, the remaining planes are kept as
@@ -538,6 +732,80 @@ mod tests {
         assert!(passed > 0);
     }
 
+    /// [`slot_hits`] (SSE2 on x86_64) gives the bits of its scalar twin on every node, for rays
+    /// from random points in random directions, axis-aligned ones included.
+    #[test]
+    fn slot_hits_are_the_scalar_slab_test() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let v = Visibility::new(tris, 3.0);
+        let bvh = v.bvh.as_ref().expect("a BVH");
+        let mut next = xorshift(0x51_07);
+        let mut rnd = || next() as f32;
+        let mut passed = 0u32;
+        for k in 0..2000 {
+            let origin = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
+            let mut dir = Vec3A::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+            if k % 4 == 0 {
+                dir[k / 4 % 3] = 0.0;
+            }
+            let ray = Ray::new(origin, dir.normalize(), 0.5 * v.box_padding, rnd() * 3.0);
+            for node in &bvh.nodes {
+                let bits = slot_hits(node, &ray);
+                assert_eq!(bits, slot_hits_scalar(node, &ray), "{node:?} {ray:?}");
+                passed += bits.count_ones();
+            }
+        }
+        assert!(passed > 0);
+    }
+
+    /// [`bundle_slots`] keeps every non-empty child whose box (obvhs' `child_aabb`) overlaps the
+    /// given box, and only those up to rounding, for random boxes in the room.
+    #[test]
+    fn bundle_slots_keep_every_child_box_that_overlaps() {
+        let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let v = Visibility::new(tris, 3.0);
+        let bvh = v.bvh.as_ref().expect("a BVH");
+        let mut next = xorshift(0xb0_7e);
+        let mut rnd = || next() as f32;
+        let (mut kept, mut dropped) = (0, 0);
+        for _ in 0..2000 {
+            let a = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
+            let b = a + Vec3A::new(rnd(), rnd(), rnd()) * 0.3;
+            for node in &bvh.nodes {
+                let slots = bundle_slots(node, a, b);
+                for i in 0..8 {
+                    if node.is_child_empty(i) {
+                        assert_eq!(slots >> i & 1, 0);
+                        continue;
+                    }
+                    let c = node.child_aabb(i);
+                    let overlaps = c.min.cmple(b + 1e-6).all() && c.max.cmpge(a - 1e-6).all();
+                    let clear = c.min.cmpgt(b + 1e-4).any() || c.max.cmplt(a - 1e-4).any();
+                    if overlaps {
+                        assert_eq!(slots >> i & 1, 1, "{node:?} {a} {b}");
+                        kept += 1;
+                    } else if clear {
+                        assert_eq!(slots >> i & 1, 0, "{node:?} {a} {b}");
+                        dropped += 1;
+                    }
+                }
+            }
+        }
+        assert!(kept > 100 && dropped > 100, "{kept} {dropped}");
+    }
+
+    #[test]
+    fn an_empty_scene_sees_every_segment_of_a_packet() {
+        let v = Visibility::new(Vec::new(), 1.0);
+        let targets = [DVec3::X, DVec3::Y, DVec3::Z];
+        assert_eq!(v.visible_from(DVec3::ZERO, &targets, [u32::MAX; 2]), 0b111);
+        assert_eq!(
+            v.visible_from(DVec3::ZERO, &[DVec3::X; 64], [0, 1]),
+            u64::MAX
+        );
+        assert_eq!(v.visible_from(DVec3::ZERO, &[], [0, 1]), 0);
+    }
+
     /// `(triangle, face)` pairs.
     type Occluders = Vec<([DVec3; 3], u32)>;
     /// Per face, its plane: `(normal, a point)`.
@@ -609,6 +877,54 @@ mod tests {
         let spent = bounding_planes_within(&planes, &ends, &[], 1e-9, ends.len() * 3);
         assert_eq!(spent[..3], [true; 3]);
         assert!(!spent[3..].iter().any(|&b| b));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::test_runner::Config {
+            cases: 48,
+            rng_seed: proptest::test_runner::RngSeed::Fixed(0x9ac_4e7),
+            failure_persistence: None,
+            ..Default::default()
+        })]
+
+        /// A packet's verdicts are the single rays', bit for bit, whatever the shadow cache
+        /// holds: from a point on a face of a furnished room to packets of 1 to 64 points spread
+        /// over a patch of random size (a source element, near or far), some of them on the
+        /// block, with the start's face and another ignored, and some segments shorter than the
+        /// end epsilon.
+        #[test]
+        fn packet_verdicts_are_the_single_rays(
+            seed in proptest::prelude::any::<u64>(),
+            lo in proptest::array::uniform3(0.05f64..1.0),
+            size in proptest::array::uniform3(0.05f64..0.45),
+            count in 1usize..=64,
+            spread in 1e-7f64..1.5,
+        ) {
+            let (tris, _) = room_with_block(DVec3::from(lo), DVec3::from(size));
+            let v = Visibility::new(tris.clone(), 3.0);
+            let mut rnd = xorshift(seed | 1);
+            for _ in 0..20 {
+                let (t, face) = tris[(rnd() * tris.len() as f64) as usize % tris.len()];
+                let (a, b) = (rnd() * 0.5, rnd() * 0.5);
+                let p = t[0] + (t[1] - t[0]) * a + (t[2] - t[0]) * b;
+                let centre = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+                let targets: Vec<DVec3> = (0..count)
+                    .map(|_| {
+                        centre + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * spread
+                    })
+                    .collect();
+                let ignore = [face, (rnd() * 12.0) as u32];
+                LAST_BLOCKER.with(|c| c.set((rnd() * v.tris.len() as f64) as u32));
+                let packet = v.visible_from(p, &targets, ignore);
+                for (i, &q) in targets.iter().enumerate() {
+                    proptest::prop_assert_eq!(
+                        packet >> i & 1 == 1,
+                        v.visible(p, q, ignore),
+                        "{} -> {} ({} of {})", p, q, i, count
+                    );
+                }
+            }
+        }
     }
 
     proptest::proptest! {
