@@ -328,14 +328,16 @@ impl Source for ElementSource<'_> {
         let mut front_points = 0usize;
         let (mut front_weight, mut front_visible) = (0.0, 0.0);
         let visibility = self.shot.visibility;
-        // One packet of shadow rays, to the rule's points that emit.
+        // One packet of shadow rays, to the rule's points that emit (the loop below skips the
+        // others with the same test, so it reads the verdicts in packing order).
         let mut targets = [DVec3::ZERO; POINTS];
         let mut rays = 0;
         for l in 0..self.rule.len() {
-            if alpha[l] > 0.0 {
-                targets[rays] = self.ys_vis[l];
-                rays += 1;
+            if alpha[l] <= 0.0 {
+                continue;
             }
+            targets[rays] = self.ys_vis[l];
+            rays += 1;
         }
         let mut seen = visibility.visible_from(x, &targets[..rays], ignore);
         visibility.count_rays(rays as u64);

@@ -151,7 +151,8 @@ impl Visibility {
         self.visible_uncounted(p, q, ignore)
     }
 
-    /// Adds `n` segment tests done with [`Visibility::visible_uncounted`] to the count.
+    /// Adds `n` segment tests done with [`Visibility::visible_uncounted`] or
+    /// [`Visibility::visible_from`] to the count.
     pub(crate) fn count_rays(&self, n: u64) {
         if n > 0 {
             self.rays.fetch_add(n, Ordering::Relaxed);
@@ -882,10 +883,10 @@ mod tests {
         })]
 
         /// A packet's verdicts are the single rays', bit for bit, whatever the shadow cache
-        /// holds: from a point on a face of a furnished room to packets of 1 to 64 points spread
-        /// over a patch of random size (a source element, near or far), some of them on the
-        /// block, with the start's face and another ignored, and some segments shorter than the
-        /// end epsilon.
+        /// holds: from a point on a face of a furnished room (with a few hundred small random
+        /// triangles, so that the BVH has inner nodes) to packets of 1 to 64 points spread over
+        /// a patch of random size (a source element, near or far), then to 64 points, some of
+        /// them within the end epsilon of the start; the start's face and another ignored.
         #[test]
         fn packet_verdicts_are_the_single_rays(
             seed in proptest::prelude::any::<u64>(),
@@ -894,28 +895,41 @@ mod tests {
             count in 1usize..=64,
             spread in 1e-7f64..1.5,
         ) {
-            let (tris, _) = room_with_block(DVec3::from(lo), DVec3::from(size));
-            let v = Visibility::new(tris.clone(), 3.0);
+            let (mut tris, _) = room_with_block(DVec3::from(lo), DVec3::from(size));
             let mut rnd = xorshift(seed | 1);
-            for _ in 0..20 {
-                let (p, face) = point_on_face(&tris, &mut rnd);
+            for k in 0..300 {
+                let c = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+                let mut corner = || c + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * 0.1;
+                tris.push(([corner(), corner(), corner()], 12 + k % 7));
+            }
+            let v = Visibility::new(tris.clone(), 3.0);
+            proptest::prop_assert!(v.bvh.as_ref().is_some_and(|b| b.nodes.len() > 1));
+            let eps = v.end_epsilon();
+            let mut seen = [0usize; 2];
+            for i in 0..20 {
+                let (p, face) = point_on_face(&tris[..24], &mut rnd);
                 let centre = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
-                let targets: Vec<DVec3> = (0..count)
-                    .map(|_| {
-                        centre + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * spread
+                let n = if i % 2 == 0 { count } else { 64 };
+                let targets: Vec<DVec3> = (0..n)
+                    .map(|k| match k % 16 {
+                        // Shorter than twice the end epsilon: visible whatever is there.
+                        15 if i % 2 == 1 => p + DVec3::new(rnd(), rnd(), rnd()) * eps,
+                        _ => centre + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * spread,
                     })
                     .collect();
-                let ignore = [face, (rnd() * 12.0) as u32];
+                let ignore = [face, 12 + (rnd() * 7.0) as u32];
                 LAST_BLOCKER.with(|c| c.set((rnd() * v.tris.len() as f64) as u32));
                 let packet = v.visible_from(p, &targets, ignore);
-                for (i, &q) in targets.iter().enumerate() {
+                for (k, &q) in targets.iter().enumerate() {
+                    let single = v.visible(p, q, ignore);
                     proptest::prop_assert_eq!(
-                        packet >> i & 1 == 1,
-                        v.visible(p, q, ignore),
-                        "{} -> {} ({} of {})", p, q, i, count
+                        packet >> k & 1 == 1, single,
+                        "{} -> {} ({} of {})", p, q, k, n
                     );
+                    seen[single as usize] += 1;
                 }
             }
+            proptest::prop_assert!(seen[0] > 0 && seen[1] > 0, "{:?}", seen);
         }
 
         /// Leaving the bounding faces out of the BVH changes no verdict, for segments between
