@@ -10,8 +10,8 @@
 //! Layout for speed (the shadow rays are most of a solve): the BVH is built with obvhs' slowest,
 //! best preset; the occluders are stored in the BVH's leaf order, as first vertex, edges and face
 //! (`Tri`), so a leaf's primitive index is the record's index; the traversal is obvhs'
-//! `traverse!` with our own node test [`node_hits`] (SSE2, same arithmetic as obvhs', but boxes
-//! culled behind half the box padding instead of 1e-4: `node_hits_keeps_every_child_obvhs_keeps`).
+//! `traverse!` with our own node test (`node_test.rs`: SSE2, same arithmetic as obvhs', but boxes
+//! culled behind half the box padding instead of 1e-4).
 //!
 //! Shadow cache: each thread remembers the occluder that last blocked one of its segments
 //! (`LAST_BLOCKER`) and tests it before traversing (a solve traces a receiver point against many
@@ -20,13 +20,11 @@
 //! under the same test, so the verdict is the traversal's (pinned by the brute-force twins, which
 //! run with whatever the cache holds, including an index left by another `Visibility`).
 
+mod node_test;
+
 use glam::{DVec3, UVec2, Vec3A};
-use obvhs::{
-    aabb::Aabb,
-    cwbvh::{node::CwBvhNode, CwBvh},
-    ray::Ray,
-    Boundable, BvhBuildParams,
-};
+use node_test::{bundle_slots, node_hits, slot_hits};
+use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -350,148 +348,6 @@ thread_local! {
     static LAST_BLOCKER: Cell<u32> = const { Cell::new(u32::MAX) };
 }
 
-/// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
-/// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the child planes tested by
-/// [`slot_hits`]. Pinned by `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
-#[inline(always)]
-fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
-    let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
-    let mut hits = 0;
-    let mut m = slot_hits(node, ray);
-    while m != 0 {
-        let i = m.trailing_zeros() as u64 * 8;
-        hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
-        m &= m - 1;
-    }
-    hits
-}
-
-/// Which of a CWBVH node's eight child boxes the ray's slab test passes: bit `i` for the planes
-/// of child `i` (an empty slot's planes may pass: read `child_meta`). obvhs' arithmetic, with the
-/// 8-bit planes widened four at a time by SSE2 unpacks instead of one scalar conversion each,
-/// and boxes the ray leaves before `ray.tmin` culled (obvhs culls before 1e-4 in scene units
-/// whatever the scene's size). The segment test sets `tmin` to half the box padding: a hit
-/// counted at `t > end_epsilon` lies in a box padded by `BOX_PADDING_REL * diagonal` on every
-/// side, which the ray leaves after `t + padding`; the other half covers f32 rounding
-/// (coordinates within 80 diagonals of the origin). The scalar twin
-/// [`slot_hits_scalar`] gives the same bits (`node_hits_keeps_every_child_obvhs_keeps`).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
-    use std::arch::x86_64::*;
-    let adj_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    // SAFETY: SSE2 is part of the x86_64 baseline; the loads read 8 bytes of [u8; 8] fields.
-    unsafe {
-        // The eight planes as two vectors of four f32.
-        let widen = |q: &[u8; 8]| {
-            let bytes = _mm_loadl_epi64(q.as_ptr() as *const __m128i);
-            let words = _mm_unpacklo_epi8(bytes, _mm_setzero_si128());
-            (
-                _mm_cvtepi32_ps(_mm_unpacklo_epi16(words, _mm_setzero_si128())),
-                _mm_cvtepi32_ps(_mm_unpackhi_epi16(words, _mm_setzero_si128())),
-            )
-        };
-        let slab = |lo: &[u8; 8], hi: &[u8; 8], neg: bool, scale: f32, offset: f32| {
-            let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
-            let (n0, n1) = widen(near);
-            let (f0, f1) = widen(far);
-            let (s, o) = (_mm_set1_ps(scale), _mm_set1_ps(offset));
-            (
-                _mm_add_ps(_mm_mul_ps(n0, s), o),
-                _mm_add_ps(_mm_mul_ps(n1, s), o),
-                _mm_add_ps(_mm_mul_ps(f0, s), o),
-                _mm_add_ps(_mm_mul_ps(f1, s), o),
-            )
-        };
-        let d = ray.direction;
-        let (xn0, xn1, xf0, xf1) = slab(
-            &node.child_min_x,
-            &node.child_max_x,
-            d.x < 0.0,
-            adj_inv.x,
-            adj_orig.x,
-        );
-        let (yn0, yn1, yf0, yf1) = slab(
-            &node.child_min_y,
-            &node.child_max_y,
-            d.y < 0.0,
-            adj_inv.y,
-            adj_orig.y,
-        );
-        let (zn0, zn1, zf0, zf1) = slab(
-            &node.child_min_z,
-            &node.child_max_z,
-            d.z < 0.0,
-            adj_inv.z,
-            adj_orig.z,
-        );
-        let (eps, tmax) = (_mm_set1_ps(ray.tmin), _mm_set1_ps(ray.tmax));
-        let near0 = _mm_max_ps(_mm_max_ps(xn0, _mm_max_ps(yn0, zn0)), eps);
-        let near1 = _mm_max_ps(_mm_max_ps(xn1, _mm_max_ps(yn1, zn1)), eps);
-        let far0 = _mm_min_ps(_mm_min_ps(xf0, _mm_min_ps(yf0, zf0)), tmax);
-        let far1 = _mm_min_ps(_mm_min_ps(xf1, _mm_min_ps(yf1, zf1)), tmax);
-        (_mm_movemask_ps(_mm_cmple_ps(near0, far0))
-            | (_mm_movemask_ps(_mm_cmple_ps(near1, far1)) << 4)) as u32
-    }
-}
-
-#[cfg(not(target_arch = "x86_64"))]
-#[inline(always)]
-fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
-    slot_hits_scalar(node, ray)
-}
-
-/// [`slot_hits`] one child and one axis at a time.
-#[cfg(any(test, not(target_arch = "x86_64")))]
-fn slot_hits_scalar(node: &CwBvhNode, ray: &Ray) -> u32 {
-    let adj_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    let planes = [
-        (&node.child_min_x, &node.child_max_x),
-        (&node.child_min_y, &node.child_max_y),
-        (&node.child_min_z, &node.child_max_z),
-    ];
-    let mut mask = 0;
-    for i in 0..8 {
-        let (mut near, mut far) = (ray.tmin, ray.tmax);
-        for (axis, (lo, hi)) in planes.iter().enumerate() {
-            let (a, b) = if ray.direction[axis] < 0.0 {
-                (hi[i], lo[i])
-            } else {
-                (lo[i], hi[i])
-            };
-            near = near.max(a as f32 * adj_inv[axis] + adj_orig[axis]);
-            far = far.min(b as f32 * adj_inv[axis] + adj_orig[axis]);
-        }
-        mask |= u32::from(near <= far) << i;
-    }
-    mask
-}
-
-/// Which of a CWBVH node's non-empty child boxes overlap the box `lo`-`hi` (bit `i` for child
-/// `i`): the packet's shared test, before any ray's ([`Visibility::visible_from`]). Exact up to
-/// f32 rounding of the box into the node's quantized frame (the extent is a power of two), which
-/// the caller's padding covers.
-#[inline(always)]
-fn bundle_slots(node: &CwBvhNode, lo: Vec3A, hi: Vec3A) -> u32 {
-    let origin = Vec3A::from(node.p);
-    let inv = node.compute_extent().recip();
-    let (lo, hi) = ((lo - origin) * inv, (hi - origin) * inv);
-    let mut mask = 0;
-    for i in 0..8 {
-        let overlaps = node.child_meta[i] != 0
-            && f32::from(node.child_min_x[i]) <= hi.x
-            && f32::from(node.child_max_x[i]) >= lo.x
-            && f32::from(node.child_min_y[i]) <= hi.y
-            && f32::from(node.child_max_y[i]) >= lo.y
-            && f32::from(node.child_min_z[i]) <= hi.z
-            && f32::from(node.child_max_z[i]) >= lo.z;
-        mask |= u32::from(overlaps) << i;
-    }
-    mask
-}
-
 /// Most point-plane tests [`bounding_planes`] makes; past it, the remaining planes are kept as
 /// occluders (always correct, only slower to trace).
 pub const MAX_BOUNDING_TESTS: usize = 100_000_000;
@@ -588,7 +444,7 @@ mod tests {
     use super::*;
 
     /// Uniform numbers in [0, 1) from a xorshift generator seeded with `state` (not 0).
-    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+    pub(super) fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
         move || {
             state ^= state << 13;
             state ^= state >> 7;
@@ -708,71 +564,6 @@ mod tests {
         assert!(blocked[0] > 30 && blocked[1] > 30, "{blocked:?}");
     }
 
-    /// [`node_hits`] passes every child obvhs' own node test passes (the segment test's near
-    /// limit, half the box padding, being under obvhs' 1e-4 in this room), on every node of a BVH
-    /// for rays from random points in random directions, axis-aligned ones included; and
-    /// [`slot_hits`] (SSE2 on x86_64) gives the bits of its scalar twin.
-    #[test]
-    fn node_hits_keeps_every_child_obvhs_keeps() {
-        let v = furnished_room();
-        let bvh = v.bvh.as_ref().expect("a BVH");
-        let mut next = xorshift(0xb0c5);
-        let mut rnd = || next() as f32;
-        let mut passed = 0usize;
-        for k in 0..2000 {
-            let origin = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
-            let mut dir = Vec3A::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
-            if k % 4 == 0 {
-                dir[k / 4 % 3] = 0.0;
-            }
-            let dir = dir.normalize();
-            let ray = Ray::new(origin, dir, 0.5 * v.box_padding, rnd() * 3.0);
-            let oct = bvh.new_traversal(dir).oct_inv4;
-            for node in &bvh.nodes {
-                let (ours, theirs) = (node_hits(node, &ray, oct), node.intersect_ray(&ray, oct));
-                assert_eq!(theirs & !ours, 0, "{node:?} {ray:?}");
-                assert_eq!(slot_hits(node, &ray), slot_hits_scalar(node, &ray));
-                passed += theirs.count_ones() as usize;
-            }
-        }
-        assert!(passed > 0);
-    }
-
-    /// [`bundle_slots`] keeps every non-empty child whose box (obvhs' `child_aabb`) overlaps the
-    /// given box, and only those up to rounding, for random boxes in the room.
-    #[test]
-    fn bundle_slots_keep_every_child_box_that_overlaps() {
-        let v = furnished_room();
-        let bvh = v.bvh.as_ref().expect("a BVH");
-        let mut next = xorshift(0xb0_7e);
-        let mut rnd = || next() as f32;
-        let (mut kept, mut dropped) = (0, 0);
-        for _ in 0..2000 {
-            let a = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
-            let b = a + Vec3A::new(rnd(), rnd(), rnd()) * 0.3;
-            for node in &bvh.nodes {
-                let slots = bundle_slots(node, a, b);
-                for i in 0..8 {
-                    if node.is_child_empty(i) {
-                        assert_eq!(slots >> i & 1, 0);
-                        continue;
-                    }
-                    let c = node.child_aabb(i);
-                    let overlaps = c.min.cmple(b + 1e-6).all() && c.max.cmpge(a - 1e-6).all();
-                    let clear = c.min.cmpgt(b + 1e-4).any() || c.max.cmplt(a - 1e-4).any();
-                    if overlaps {
-                        assert_eq!(slots >> i & 1, 1, "{node:?} {a} {b}");
-                        kept += 1;
-                    } else if clear {
-                        assert_eq!(slots >> i & 1, 0, "{node:?} {a} {b}");
-                        dropped += 1;
-                    }
-                }
-            }
-        }
-        assert!(kept > 100 && dropped > 100, "{kept} {dropped}");
-    }
-
     #[test]
     fn an_empty_scene_sees_every_segment_of_a_packet() {
         let v = Visibility::new(Vec::new(), 1.0);
@@ -786,7 +577,7 @@ mod tests {
     }
 
     /// The visibility structure of [`room_with_block`] with a fixed block (diagonal 3).
-    fn furnished_room() -> Visibility {
+    pub(super) fn furnished_room() -> Visibility {
         let (tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
         Visibility::new(tris, 3.0)
     }
