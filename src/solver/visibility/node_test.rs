@@ -157,6 +157,17 @@ mod tests {
     use super::super::tests::{furnished_room, xorshift};
     use super::*;
 
+    /// Uniform f32 numbers in [0, 1) (`xorshift` seeded with `seed`).
+    fn f32s(seed: u64) -> impl FnMut() -> f32 {
+        let mut next = xorshift(seed);
+        move || next() as f32
+    }
+
+    /// A random point in the box of [`furnished_room`] widened by 0.2 on every side.
+    fn point_around_room(rnd: &mut impl FnMut() -> f32) -> Vec3A {
+        Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2)
+    }
+
     /// [`node_hits`] passes every child obvhs' own node test passes (the segment test's near
     /// limit, half the box padding, being under obvhs' 1e-4 in this room), on every node of a BVH
     /// for rays from random points in random directions, axis-aligned ones included; and
@@ -165,11 +176,10 @@ mod tests {
     fn node_hits_keeps_every_child_obvhs_keeps() {
         let v = furnished_room();
         let bvh = v.bvh.as_ref().expect("a BVH");
-        let mut next = xorshift(0xb0c5);
-        let mut rnd = || next() as f32;
+        let mut rnd = f32s(0xb0c5);
         let mut passed = 0usize;
         for k in 0..2000 {
-            let origin = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
+            let origin = point_around_room(&mut rnd);
             let mut dir = Vec3A::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
             if k % 4 == 0 {
                 dir[k / 4 % 3] = 0.0;
@@ -193,11 +203,10 @@ mod tests {
     fn bundle_slots_keep_every_child_box_that_overlaps() {
         let v = furnished_room();
         let bvh = v.bvh.as_ref().expect("a BVH");
-        let mut next = xorshift(0xb0_7e);
-        let mut rnd = || next() as f32;
+        let mut rnd = f32s(0xb0_7e);
         let (mut kept, mut dropped) = (0, 0);
         for _ in 0..2000 {
-            let a = Vec3A::new(rnd() * 2.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 1.9 - 0.2);
+            let a = point_around_room(&mut rnd);
             let b = a + Vec3A::new(rnd(), rnd(), rnd()) * 0.3;
             for node in &bvh.nodes {
                 let slots = bundle_slots(node, a, b);
