@@ -202,6 +202,8 @@ pub(super) struct ElementSource<'s> {
     /// errors are.
     variation: f64,
     strength: f64,
+    /// Where a far link's one shadow ray ends ([`ElementSource::far_irradiance_at`]).
+    centre_vis: DVec3,
     /// The corners' stand-ins, computed when a ray first needs them.
     corner_stand_ins: [OnceCell<DVec3>; 5],
 }
@@ -272,6 +274,16 @@ impl<'s> ElementSource<'s> {
         let variation: f64 = (1..ns).map(weighted_amplitude).sum();
         // The source's mean radiosity, weighted as the oracle's errors are.
         let strength: f64 = (0..3).map(|ch| weight[ch] * source_mean[ch].abs()).sum();
+        // The far links' one shadow ray goes to the emitting points' weighted mean.
+        let centre_vis = if alpha_weight > 0.0 {
+            rule.iter()
+                .enumerate()
+                .map(|(l, q)| ys_vis[l] * (q.weight * alpha[l]))
+                .sum::<DVec3>()
+                / alpha_weight
+        } else {
+            patch.point(DVec2::splat(0.5))
+        };
         ElementSource {
             shot,
             src,
@@ -287,6 +299,7 @@ impl<'s> ElementSource<'s> {
             partial,
             variation,
             strength,
+            centre_vis,
             corner_stand_ins: Default::default(),
         }
     }
@@ -303,18 +316,10 @@ impl<'s> ElementSource<'s> {
     fn exchange(&self, x: DVec3, n: DVec3, y: DVec3) -> bool {
         (x - y).dot(self.root.normal) > 0.0 && (y - x).dot(n) > 0.0
     }
-}
 
-impl Source for ElementSource<'_> {
-    fn ignored_faces(&self, receiver_face: u32) -> [u32; 2] {
-        [self.root.face.0, receiver_face]
-    }
-
-    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
-        let f_exact = self.emitter.form_factor(x, n);
-        if f_exact <= 0.0 {
-            return None;
-        }
+    /// What the source delivers at `x` (normal `n`, exact form factor `f_exact > 0`) given the
+    /// verdicts `seen` of its emitting rule points, bit `i` for the `i`-th of them.
+    fn with_verdicts(&self, x: DVec3, n: DVec3, f_exact: f64, mut seen: u64) -> PointIrradiance {
         let unoccluded = f_exact * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
@@ -327,20 +332,6 @@ impl Source for ElementSource<'_> {
         let mut visible_weight = 0.0;
         let mut front_points = 0usize;
         let (mut front_weight, mut front_visible) = (0.0, 0.0);
-        let visibility = self.shot.visibility;
-        // One packet of shadow rays, to the rule's points that emit (the loop below skips the
-        // others with the same test, so it reads the verdicts in packing order).
-        let mut targets = [DVec3::ZERO; POINTS];
-        let mut rays = 0;
-        for l in 0..self.rule.len() {
-            if alpha[l] <= 0.0 {
-                continue;
-            }
-            targets[rays] = self.ys_vis[l];
-            rays += 1;
-        }
-        let mut seen = visibility.visible_from(x, &targets[..rays], ignore);
-        visibility.count_rays(rays as u64);
         for (l, ql) in self.rule.iter().enumerate() {
             if alpha[l] <= 0.0 {
                 continue;
@@ -396,7 +387,54 @@ impl Source for ElementSource<'_> {
             }
         }
         out.e = e;
-        Some(out)
+        out
+    }
+
+    /// The irradiance of a far link at `x` (normal `n`): [`Source::irradiance_at`] with one
+    /// shadow ray, to the source's centre, standing for every rule point's. A far link's whole
+    /// transfer is within the oracle's threshold (`far_field.rs`), the budget any other
+    /// visibility estimate of it would be allowed; `None` when nothing reaches `x`.
+    pub(super) fn far_irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<Rgb> {
+        let f_exact = self.emitter.form_factor(x, n);
+        if f_exact <= 0.0 {
+            return None;
+        }
+        let visibility = self.shot.visibility;
+        visibility.count_rays(1);
+        let seen = if visibility.visible_from(x, &[self.centre_vis], ignore) & 1 == 1 {
+            u64::MAX
+        } else {
+            0
+        };
+        Some(self.with_verdicts(x, n, f_exact, seen).e)
+    }
+}
+
+impl Source for ElementSource<'_> {
+    fn ignored_faces(&self, receiver_face: u32) -> [u32; 2] {
+        [self.root.face.0, receiver_face]
+    }
+
+    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
+        let f_exact = self.emitter.form_factor(x, n);
+        if f_exact <= 0.0 {
+            return None;
+        }
+        let visibility = self.shot.visibility;
+        // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the
+        // others with the same test, so it reads the verdicts in packing order).
+        let mut targets = [DVec3::ZERO; POINTS];
+        let mut rays = 0;
+        for l in 0..self.rule.len() {
+            if self.alpha[l] <= 0.0 {
+                continue;
+            }
+            targets[rays] = self.ys_vis[l];
+            rays += 1;
+        }
+        let seen = visibility.visible_from(x, &targets[..rays], ignore);
+        visibility.count_rays(rays as u64);
+        Some(self.with_verdicts(x, n, f_exact, seen))
     }
 
     fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb {

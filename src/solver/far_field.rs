@@ -1,11 +1,13 @@
 //! Far receivers of a shot: a receiver root whose whole transfer from the shooter is bounded
 //! within the oracle's threshold, before any ray or quadrature, takes the shot as one constant
-//! link: the source's irradiance at the receiver's centre (its quadrature, its rays, its exact
-//! form factor), a constant over the root. The oracle would accept a link of that size at the root whatever its visibility
+//! link: the source's irradiance at the receiver's centre (its quadrature and its exact form
+//! factor), a constant over the root, with one shadow ray (to the source's centre) deciding its
+//! visibility. The oracle would accept a link of that size at the root whatever its visibility
 //! (`oracle.rs`: an error above the threshold is needed for any other verdict), so the
 //! refinement's result is within the same budget; what it saves is the quadrature at every rule
 //! and check point of every far receiver, shot after shot, which made a level's cost grow like
-//! the square of its faces.
+//! the square of its faces, and the one ray the rays to every rule point (on a large city the far
+//! links are most of the indirect phase: `a_far_link_takes_the_whole_source_on_one_ray`).
 //!
 //! The bound: a Lambertian source's power into a cone of half-angle `theta` is at most
 //! `sin^2 theta` of it, and a sphere of radius `r` seen from distance `d` subtends
@@ -17,6 +19,7 @@
 //! Invariant: a far link is gathered at the receiver's root node only, and counted like any link.
 
 use super::element::visibility_point;
+use super::element_source::ElementSource;
 #[cfg(test)]
 use super::kernel::point_polygon_form_factor;
 use super::source::Source;
@@ -85,15 +88,16 @@ pub(super) fn point_form_factor(
 }
 
 /// The irradiance one far link delivers to `root`: the source's at the receiver's centre (its
-/// stand-in on an extended face); `None` when the centre receives nothing from it.
-pub(super) fn far_irradiance(source: &impl Source, root: &ElementRoot) -> Option<Rgb> {
+/// stand-in on an extended face), one shadow ray deciding its visibility
+/// (`ElementSource::far_irradiance_at`); `None` when the centre receives nothing from it.
+pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot) -> Option<Rgb> {
     let st = match root.shape {
         Shape::Triangle => DVec2::splat(1.0 / 3.0),
         Shape::Parallelogram => DVec2::splat(0.5),
     };
     let x = visibility_point(root, &super::basis::ChildMap::IDENTITY, st);
     let ignore = source.ignored_faces(root.face.0);
-    source.irradiance_at(x, root.normal, ignore).map(|p| p.e)
+    source.far_irradiance_at(x, root.normal, ignore)
 }
 
 #[cfg(test)]
@@ -155,6 +159,74 @@ mod tests {
                 assert!(exact <= bound + 1e-12, "{exact} > {bound}");
             }
         }
+    }
+
+    /// A far link traces one shadow ray, to the source's centre: when it passes, the link takes
+    /// what the source's whole rule delivers with every point visible (the same numbers); when
+    /// it is blocked, nothing.
+    #[test]
+    fn a_far_link_takes_the_whole_source_on_one_ray() {
+        use crate::solver::element_source::{ElementShot, SourceElement};
+        use crate::solver::hierarchy::Hierarchy;
+        use crate::solver::refine::Shot;
+        use crate::solver::rules::{Bases, Rules};
+        use crate::solver::visibility::Visibility;
+        // A 1 m square source facing up, a receiver 20 m above it facing down.
+        let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
+        source.exitance = [2.0, 1.0, 0.5];
+        let mut receiver = parallelogram_root(DVec3::new(0.0, 0.0, 20.0), DVec3::Y, DVec3::X);
+        receiver.face = crate::domain::FaceId(1);
+        let roots = [source, receiver];
+        let (bases, rules) = (Bases::new(2), Rules::new(2));
+        let hierarchy = Hierarchy::new(bases.of(Shape::Parallelogram).len());
+        let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+        coeffs[0] = roots[0].exitance;
+        let n = bases.of(Shape::Parallelogram).len();
+        let element = SourceElement::root(&roots[0], coeffs, n, None, None);
+        // A small square at half height over the source's centre: it blocks the centre ray
+        // and not the rule's outer points.
+        let c = DVec3::new(0.5, 0.5, 10.0);
+        let (a, b, d, e) = (
+            c + DVec3::new(-0.1, -0.1, 0.0),
+            c + DVec3::new(0.1, -0.1, 0.0),
+            c + DVec3::new(0.1, 0.1, 0.0),
+            c + DVec3::new(-0.1, 0.1, 0.0),
+        );
+        let open = Visibility::new(Vec::new(), 30.0);
+        let blocked = Visibility::new([([a, b, d], 7), ([a, d, e], 7)], 30.0);
+        let at = |visibility: &Visibility| {
+            let shot = ElementShot {
+                roots: &roots,
+                bases: &bases,
+                rules: &rules,
+                visibility,
+                source_root: 0,
+                source_hierarchy: &hierarchy,
+                direct: true,
+                source_face_means: None,
+                min_edge: 1e-3,
+            };
+            let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+            let ignore = source.ignored_faces(1);
+            let x = DVec3::new(0.5, 0.5, 20.0);
+            let whole = source
+                .irradiance_at(x, roots[1].normal, ignore)
+                .map(|p| p.e);
+            let before = visibility.rays_traced();
+            let far = far_irradiance(&source, &roots[1]);
+            (whole, far, visibility.rays_traced() - before)
+        };
+        let (whole, far, rays) = at(&open);
+        assert_eq!(rays, 1);
+        assert_eq!(far, whole);
+        assert!(far.is_some_and(|e| e[0] > 0.0), "{far:?}");
+        let (whole, far, rays) = at(&blocked);
+        assert_eq!(rays, 1);
+        assert_eq!(far, Some([0.0; 3]));
+        assert!(
+            whole.is_some_and(|e| e[0] > 0.0),
+            "the outer points see the source: {whole:?}"
+        );
     }
 
     /// Uniform numbers in [0, 1) from a fixed seed (a linear congruential generator).

@@ -484,43 +484,51 @@ fn shoot(
             .par_iter_mut()
             .zip(unshot.par_iter_mut())
             .enumerate()
-            .for_each(|(ri, (h, power))| {
-                // Not visited (`received` marks it -1): it does not face the shooter.
-                if received[ri] < 0.0 {
-                    return;
-                }
-                if ctx.past_deadline() {
-                    interrupted.store(true, Ordering::Relaxed);
-                    return;
-                }
-                let before = *power;
-                let is_far = power_bound
-                    * far_field::transfer_fraction_bound(&ctx.spheres[shooter], &ctx.spheres[ri])
-                    <= ctx.threshold;
-                if is_far {
-                    let e = shot
-                        .source(&root_element, [1.0; 3])
-                        .and_then(|s| far_field::far_irradiance(&s, &roots[ri]));
-                    if let Some(e) = e {
-                        ctx.accept_far(h, e);
+            // The shooter as a far source: built once per piece of the loop, not per receiver
+            // (it is not `Sync`: its corner stand-ins are filled lazily).
+            .for_each_init(
+                || shot.source(&root_element, [1.0; 3]),
+                |far_source, (ri, (h, power))| {
+                    // Not visited (`received` marks it -1): it does not face the shooter.
+                    if received[ri] < 0.0 {
+                        return;
                     }
-                } else {
-                    let mut record = ShotRecord::default();
-                    ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
-                    if ctx.node_sums {
-                        ctx.refine_by_node_sums(&shot, record, ri, h);
+                    if ctx.past_deadline() {
+                        interrupted.store(true, Ordering::Relaxed);
+                        return;
                     }
-                }
-                if h.touched {
-                    h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
-                    *power = unshot_power(h, &roots[ri]);
-                }
-                done.finished(
-                    units.of(weight(received[ri])),
-                    returns_units.of(expected(ri)),
-                    returns_units.of(*power - before),
-                );
-            })
+                    let before = *power;
+                    let is_far = power_bound
+                        * far_field::transfer_fraction_bound(
+                            &ctx.spheres[shooter],
+                            &ctx.spheres[ri],
+                        )
+                        <= ctx.threshold;
+                    if is_far {
+                        let e = far_source
+                            .as_ref()
+                            .and_then(|s| far_field::far_irradiance(s, &roots[ri]));
+                        if let Some(e) = e {
+                            ctx.accept_far(h, e);
+                        }
+                    } else {
+                        let mut record = ShotRecord::default();
+                        ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+                        if ctx.node_sums {
+                            ctx.refine_by_node_sums(&shot, record, ri, h);
+                        }
+                    }
+                    if h.touched {
+                        h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                        *power = unshot_power(h, &roots[ri]);
+                    }
+                    done.finished(
+                        units.of(weight(received[ri])),
+                        returns_units.of(expected(ri)),
+                        returns_units.of(*power - before),
+                    );
+                },
+            )
     };
     with_reports(work, &mut |c| reporter.within_shot(c, receivers));
     hierarchies[shooter] = source_h;
