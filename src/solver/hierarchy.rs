@@ -198,6 +198,25 @@ impl Hierarchy {
         self.touched = false;
     }
 
+    /// Adds the irradiance `e`, constant over the root, as [`Hierarchy::push_pull`] of `e`
+    /// gathered at the root would (basis function 0 is 1 on every element, so a constant's
+    /// coefficients are `(e, 0, ..)` on each): `h` (and `hd` when `direct`) gain `e` and `u`
+    /// gains `rho e` at every node. For a root whose reflectance is the constant `rho`
+    /// (`reflectance` empty); `dh` is left alone (`add_constant_is_push_pull_of_a_constant`).
+    pub fn add_constant(&mut self, e: Rgb, rho: Rgb, direct: bool) {
+        debug_assert!(self.reflectance.is_empty());
+        let n = self.len;
+        for i in (0..self.nodes.len()).map(|node| node * n) {
+            for k in 0..3 {
+                self.h[i][k] += e[k];
+                self.u[i][k] += rho[k] * e[k];
+                if direct {
+                    self.hd[i][k] += e[k];
+                }
+            }
+        }
+    }
+
     /// Returns the node's increments of `h` and of `u`.
     fn push_pull_node(
         &mut self,
@@ -371,6 +390,45 @@ pub fn child_index(shape: Shape, st: DVec2) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `add_constant` against `push_pull` of the same constant gathered at the root, on a tree
+    /// split unevenly, every order and shape, direct or not.
+    #[test]
+    fn add_constant_is_push_pull_of_a_constant() {
+        let (e, rho) = ([0.7, -0.2, 3.0], [0.5, 0.25, 0.9]);
+        for shape in [Shape::Triangle, Shape::Parallelogram] {
+            for order in 1..=3 {
+                let basis = Basis::new(shape, order);
+                let mut tree = Hierarchy::new(basis.len());
+                for node in [0, 2, 3, 5, 9, 10] {
+                    tree.split(node, &basis, shape);
+                }
+                // Something already stored, not constant.
+                for (i, c) in tree.h.iter_mut().enumerate() {
+                    *c = [i as f64 * 0.1, 1.0, -0.5];
+                }
+                tree.u = tree.h.iter().map(|c| c.map(|x| x * 0.3)).collect();
+                tree.hd = tree.u.clone();
+                for direct in [false, true] {
+                    let mut pushed = tree.clone();
+                    pushed.dh[0] = e;
+                    pushed.push_pull(&basis, rho, direct);
+                    let mut added = tree.clone();
+                    added.add_constant(e, rho, direct);
+                    for (a, b) in [
+                        (&added.h, &pushed.h),
+                        (&added.u, &pushed.u),
+                        (&added.hd, &pushed.hd),
+                    ] {
+                        for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+                            assert!((x - y).abs() < 1e-12, "{shape:?} M{order}: {x} vs {y}");
+                        }
+                    }
+                    assert!(added.dh.iter().flatten().all(|&x| x == 0.0));
+                }
+            }
+        }
+    }
 
     #[test]
     fn bytes_grow_with_the_nodes() {

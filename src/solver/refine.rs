@@ -186,9 +186,16 @@ impl ShotContext<'_> {
         }
     }
 
-    /// Gathers a far link (`far_field.rs`): a constant irradiance `e` at the root node.
-    pub fn accept_far(&self, rcv: &mut Hierarchy, e: Rgb) {
+    /// Accepts a far link (`far_field.rs`): a constant irradiance `e` over `root`, added to
+    /// every node at once where the reflectance is constant ([`Hierarchy::add_constant`], no
+    /// push-pull of the whole tree per far link), else gathered at the root node for the shot's
+    /// push-pull.
+    pub fn accept_far(&self, rcv: &mut Hierarchy, root: &ElementRoot, e: Rgb, direct: bool) {
         self.links.fetch_add(1, Ordering::Relaxed);
+        if rcv.reflectance.is_empty() {
+            rcv.add_constant(e, root.rho, direct);
+            return;
+        }
         let mut dh = [[0.0; 3]; MAX_FUNCTIONS];
         dh[0] = e;
         gather(rcv, 0, &dh[..rcv.len]);

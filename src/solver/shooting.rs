@@ -509,7 +509,11 @@ fn shoot(
                             .as_ref()
                             .and_then(|s| far_field::far_irradiance(s, &roots[ri]));
                         if let Some(e) = e {
-                            ctx.accept_far(h, e);
+                            ctx.accept_far(h, &roots[ri], e, direct);
+                            if !h.touched {
+                                // Added to every node (a gathered one is pushed below).
+                                *power = unshot_power(h, &roots[ri]);
+                            }
                         }
                     } else {
                         let mut record = ShotRecord::default();
