@@ -87,15 +87,20 @@ pub(super) fn point_form_factor(
     Some(shooter.area_m2 * cos_s * cos_r / (std::f64::consts::PI * len * len))
 }
 
-/// The irradiance one far link delivers to `root`: the source's at the receiver's centre (its
-/// stand-in on an extended face), one shadow ray deciding its visibility
-/// (`ElementSource::far_irradiance_at`); `None` when the centre receives nothing from it.
-pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot) -> Option<Rgb> {
+/// Where a far link to `root` is evaluated: its centre, or the centre's stand-in on the face
+/// of an extended root. The same every shot: computed once per root (`shooting.rs`).
+pub(super) fn link_point(root: &ElementRoot) -> DVec3 {
     let st = match root.shape {
         Shape::Triangle => DVec2::splat(1.0 / 3.0),
         Shape::Parallelogram => DVec2::splat(0.5),
     };
-    let x = visibility_point(root, &super::basis::ChildMap::IDENTITY, st);
+    visibility_point(root, &super::basis::ChildMap::IDENTITY, st)
+}
+
+/// The irradiance one far link delivers to `root` at its [`link_point`] `x`, one shadow ray
+/// deciding its visibility (`ElementSource::far_irradiance_at`); `None` when `x` receives
+/// nothing from the source.
+pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot, x: DVec3) -> Option<Rgb> {
     let ignore = source.ignored_faces(root.face.0);
     source.far_irradiance_at(x, root.normal, ignore)
 }
@@ -213,7 +218,7 @@ mod tests {
                 .irradiance_at(x, roots[1].normal, ignore)
                 .map(|p| p.e);
             let before = visibility.rays_traced();
-            let far = far_irradiance(&source, &roots[1]);
+            let far = far_irradiance(&source, &roots[1], link_point(&roots[1]));
             (whole, far, visibility.rays_traced() - before)
         };
         let (whole, far, rays) = at(&open);

@@ -20,6 +20,7 @@ use super::visibility::Visibility;
 use super::Quantity;
 use crate::domain::ElementRoot;
 use crate::scene::Rgb;
+use glam::DVec3;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
@@ -72,6 +73,8 @@ pub(super) struct ShotContext<'a> {
     pub deadline: Option<std::time::Instant>,
     /// Each root's bounding sphere (`far_field.rs`).
     pub spheres: &'a [Sphere],
+    /// Each root's far-link point (`far_field::link_point`).
+    pub link_points: &'a [DVec3],
 }
 
 impl ShotContext<'_> {

@@ -26,6 +26,7 @@ use super::{
 };
 use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
+use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -63,6 +64,7 @@ pub fn solve(
     let mut emitted = emitted_power(&roots);
     let counters = Counters::default();
     let spheres: Vec<Sphere> = roots.iter().map(Sphere::of_root).collect();
+    let link_points: Vec<DVec3> = roots.iter().map(far_field::link_point).collect();
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
@@ -91,6 +93,7 @@ pub fn solve(
             .max_seconds
             .and_then(|m| start.checked_add(std::time::Duration::try_from_secs_f64(m).ok()?)),
         spheres: &spheres,
+        link_points: &link_points,
     };
     let mut convergence = Vec::new();
     let mut reporter = Reporter::new(start, observe, &counters.links, &params, roots.len());
@@ -505,9 +508,9 @@ fn shoot(
                         )
                         <= ctx.threshold;
                     if is_far {
-                        let e = far_source
-                            .as_ref()
-                            .and_then(|s| far_field::far_irradiance(s, &roots[ri]));
+                        let e = far_source.as_ref().and_then(|s| {
+                            far_field::far_irradiance(s, &roots[ri], ctx.link_points[ri])
+                        });
                         if let Some(e) = e {
                             ctx.accept_far(h, &roots[ri], e, direct);
                             if !h.touched {
