@@ -2,7 +2,8 @@
 //! unshot radiosity it shoots), [`ElementShot`] (one shot's shooter: it makes an element's
 //! children, computed by push when they are not stored) and [`ElementSource`], an element as one
 //! receiver sees it: the quadrature of its radiosity over its rule's points, one shadow ray per
-//! point, scaled to the exact form factor, and the reciprocity check.
+//! point (one in all for a far link), scaled to the exact form factor, and the reciprocity
+//! check.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -202,8 +203,9 @@ pub(super) struct ElementSource<'s> {
     /// errors are.
     variation: f64,
     strength: f64,
-    /// Where a far link's one shadow ray ends ([`ElementSource::far_irradiance_at`]).
-    centre_vis: DVec3,
+    /// Where a far link's one shadow ray ends, computed when a far link first needs it
+    /// ([`ElementSource::far_irradiance_at`]).
+    centre_stand_in: OnceCell<DVec3>,
     /// The corners' stand-ins, computed when a ray first needs them.
     corner_stand_ins: [OnceCell<DVec3>; 5],
 }
@@ -274,16 +276,6 @@ impl<'s> ElementSource<'s> {
         let variation: f64 = (1..ns).map(weighted_amplitude).sum();
         // The source's mean radiosity, weighted as the oracle's errors are.
         let strength: f64 = (0..3).map(|ch| weight[ch] * source_mean[ch].abs()).sum();
-        // The far links' one shadow ray goes to the emitting points' weighted mean.
-        let centre_vis = if alpha_weight > 0.0 {
-            rule.iter()
-                .enumerate()
-                .map(|(l, q)| ys_vis[l] * (q.weight * alpha[l]))
-                .sum::<DVec3>()
-                / alpha_weight
-        } else {
-            patch.point(DVec2::splat(0.5))
-        };
         ElementSource {
             shot,
             src,
@@ -299,9 +291,23 @@ impl<'s> ElementSource<'s> {
             partial,
             variation,
             strength,
-            centre_vis,
+            centre_stand_in: OnceCell::new(),
             corner_stand_ins: Default::default(),
         }
+    }
+
+    /// The emitting rule points' weighted mean, on the face: the mean itself when the face
+    /// covers it, else its closest point on the face (off an L-shaped face or in a hole, the
+    /// mean would send a far link's ray to a point that may lie inside another object).
+    fn centre_stand_in(&self) -> DVec3 {
+        let st = self
+            .rule
+            .iter()
+            .zip(&self.alpha)
+            .map(|(q, &a)| q.st * (q.weight * a))
+            .sum::<DVec2>()
+            / self.alpha_weight;
+        visibility_point(self.root, &self.src.map, st)
     }
 
     /// A bound on the power the element may send (channels summed and weighted as the oracle's
@@ -391,17 +397,23 @@ impl<'s> ElementSource<'s> {
     }
 
     /// The irradiance of a far link at `x` (normal `n`): [`Source::irradiance_at`] with one
-    /// shadow ray, to the source's centre, standing for every rule point's. A far link's whole
-    /// transfer is within the oracle's threshold (`far_field.rs`), the budget any other
-    /// visibility estimate of it would be allowed; `None` when nothing reaches `x`.
+    /// shadow ray, to the source's centre, standing for every rule point's (0 when it is
+    /// blocked). A far link's whole transfer is within the oracle's threshold (`far_field.rs`),
+    /// the budget any other visibility estimate of it would be allowed. `None` when `x` is behind
+    /// the source or the source's plane.
     pub(super) fn far_irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<Rgb> {
         let f_exact = self.emitter.form_factor(x, n);
         if f_exact <= 0.0 {
             return None;
         }
+        if self.alpha_weight <= 0.0 {
+            // No rule point emits: nothing to see.
+            return Some([0.0; 3]);
+        }
+        let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
         let visibility = self.shot.visibility;
         visibility.count_rays(1);
-        let seen = if visibility.visible_from(x, &[self.centre_vis], ignore) & 1 == 1 {
+        let seen = if visibility.visible_from(x, &[centre], ignore) & 1 == 1 {
             u64::MAX
         } else {
             0

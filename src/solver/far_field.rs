@@ -6,8 +6,8 @@
 //! (`oracle.rs`: an error above the threshold is needed for any other verdict), so the
 //! refinement's result is within the same budget; what it saves is the quadrature at every rule
 //! and check point of every far receiver, shot after shot, which made a level's cost grow like
-//! the square of its faces, and the one ray the rays to every rule point (on a large city the far
-//! links are most of the indirect phase: `a_far_link_takes_the_whole_source_on_one_ray`).
+//! the square of its faces; and its one ray replaces the rays to every rule point (on a large city
+//! the far links are most of the indirect phase: `a_far_link_takes_the_whole_source_on_one_ray`).
 //!
 //! The bound: a Lambertian source's power into a cone of half-angle `theta` is at most
 //! `sin^2 theta` of it, and a sphere of radius `r` seen from distance `d` subtends
@@ -16,7 +16,9 @@
 //! `P` the shooter may send. Pinned by `far_field_bound_holds_for_random_pairs` below and, end to
 //! end, by the reference and analytic tests.
 //!
-//! Invariant: a far link is gathered at the receiver's root node only, and counted like any link.
+//! Invariant: a far link is one constant over the receiver's root (added to every node of its
+//! tree, or gathered at its root node where the reflectance varies: `ShotContext::accept_far`),
+//! and counted like any link.
 
 use super::element::visibility_point;
 use super::element_source::ElementSource;

@@ -133,7 +133,7 @@ pub struct Progress {
     pub unshot_ratio: f64,
     /// Leaf elements after the last finished shot.
     pub elements: u64,
-    /// Links gathered so far (counted during shots too).
+    /// Links accepted so far, far links included (counted during shots too).
     pub links: u64,
     /// Seconds of solving so far.
     pub seconds: f64,
