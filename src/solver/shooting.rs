@@ -501,6 +501,8 @@ fn shoot(
                         return;
                     }
                     let before = *power;
+                    // Whether the receiver took any light this shot (its unshot power changed).
+                    let mut took_light = false;
                     let is_far = power_bound
                         * far_field::transfer_fraction_bound(
                             &ctx.spheres[shooter],
@@ -513,10 +515,7 @@ fn shoot(
                         });
                         if let Some(e) = e {
                             ctx.accept_far(h, &roots[ri], e, direct);
-                            if !h.touched {
-                                // Added to every node (a gathered one is pushed below).
-                                *power = unshot_power(h, &roots[ri]);
-                            }
+                            took_light = true;
                         }
                     } else {
                         let mut record = ShotRecord::default();
@@ -527,6 +526,9 @@ fn shoot(
                     }
                     if h.touched {
                         h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                        took_light = true;
+                    }
+                    if took_light {
                         *power = unshot_power(h, &roots[ri]);
                     }
                     done.finished(
