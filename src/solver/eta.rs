@@ -37,12 +37,22 @@ const MAX_RETURN: f64 = 0.95;
 const MIN_SHOTS: usize = 2;
 /// The shots per nat are counted over the last this many nats of the history.
 const WINDOW_NATS: f64 = 1.0;
+/// The share of its own seconds the far-field part of the prior must see pass before the
+/// indirect shots' evidence replaces it (their first nats, the hot spots of the direct light
+/// draining, are the fastest of the phase).
+const PRIOR_TRUST: f64 = 0.25;
 /// Steps of the history, and nats they span, before its decay is fitted ([`EtaEstimator::decay`]).
 const MIN_DECAY_STEPS: usize = 3;
 const MIN_DECAY_SPAN: f64 = 0.05;
 /// Nats of progress below which a shot updates the last point of the history instead of adding
 /// one (bounds the history by the nats from the start to the target, not by the shots).
 const HISTORY_STEP: f64 = 1e-3;
+/// What one far-field receiver visit of an indirect shot costs, in rays of the direct phase (its
+/// seconds over the rays it traced, so the machine and its load are the phase's): a visit is one
+/// ray, one exact form factor, a constant added to the receiver's tree and its unshot power
+/// recomputed, besides the shot's share of checks (docs/performance-notes.md, "The ETA's
+/// prior counts the far field").
+const FAR_VISIT_RAYS: f64 = 20.0;
 
 /// Estimates the seconds left in a solve from what the solver knows: the clock, the shot in
 /// progress (its plan, its seconds so far, the fraction of its cost done and what its receivers
@@ -63,6 +73,10 @@ const HISTORY_STEP: f64 = 1e-3;
 ///   one), and `k = U / P`, `P` the power it sent, the share taken to come back at every bounce
 ///   (at most [`MAX_RETURN`]). Under a sky most of the power leaves, `k` is small and the prior a
 ///   fraction of the direct phase; in a closed room it is a multiple (`tests::eta_prior_*`).
+///   To that the prior adds the far-field visits the indirect phase is foreseen to make
+///   (`indirect_forecast.rs`: one per root a shot reaches in its far field, whatever the power:
+///   the term that grows like the roots squared), [`FAR_VISIT_RAYS`] each at the direct phase's
+///   seconds per ray (`eta_prior_counts_the_far_field_of_a_large_scene`).
 /// - Then the indirect shots are the evidence: with `u` the nats of unshot ratio shed since the
 ///   direct phase, the seconds per nat are those of the last [`WINDOW_NATS`] of the history
 ///   (taken at its middle), falling like `exp(-beta u)`, `beta` the slope of ln seconds per nat
@@ -100,14 +114,21 @@ pub(super) struct EtaEstimator {
     y_phase: f64,
     /// Indirect shots finished.
     indirect_shots: usize,
+    /// The far-field receiver visits the indirect phase is foreseen to make
+    /// (`indirect_forecast.rs`; 0 until foreseen).
+    far_visits: f64,
+    /// Rays traced by the solve at the last count, and at the start of the shot in progress.
+    rays: u64,
+    shot_rays: u64,
 }
 
-/// Seconds, power sent and returns (W) of light and direct shots.
+/// Seconds, power sent, returns (W) and rays traced of light and direct shots.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Phase {
     seconds: f64,
     power: f64,
     returns: f64,
+    rays: f64,
 }
 
 impl Phase {
@@ -116,6 +137,17 @@ impl Phase {
             seconds: self.seconds + seconds * times,
             power: self.power + power * times,
             returns: self.returns + returns * times,
+            rays: self.rays,
+        }
+    }
+
+    /// Seconds of `visits` far-field receiver visits, at the phase's seconds per ray
+    /// ([`FAR_VISIT_RAYS`] each); 0 before it traced any ray.
+    fn far_seconds(&self, visits: f64) -> f64 {
+        if self.rays > 0.0 {
+            visits * FAR_VISIT_RAYS * self.seconds / self.rays
+        } else {
+            0.0
         }
     }
 
@@ -144,6 +176,22 @@ impl EtaEstimator {
             history: Vec::new(),
             y_phase: 0.0,
             indirect_shots: 0,
+            far_visits: 0.0,
+            rays: 0,
+            shot_rays: 0,
+        }
+    }
+
+    /// The solve has traced `rays` rays so far (the count never decreases).
+    pub(super) fn rays_traced(&mut self, rays: u64) {
+        self.rays = self.rays.max(rays);
+    }
+
+    /// The indirect phase is foreseen to make `visits` far-field receiver visits: their seconds
+    /// join the prior.
+    pub(super) fn far_visits_foreseen(&mut self, visits: f64) {
+        if visits.is_finite() {
+            self.far_visits = visits.max(0.0);
         }
     }
 
@@ -158,6 +206,7 @@ impl EtaEstimator {
     pub(super) fn shot_started(&mut self, now: f64, plan: ShotPlan) {
         self.shot = Some((now, plan));
         self.seen = None;
+        self.shot_rays = self.rays;
     }
 
     /// The receivers of the shot in progress done so far got `ratio` times the returns expected
@@ -180,6 +229,7 @@ impl EtaEstimator {
             Some((start, plan)) if plan.kind != ShotKind::Indirect => {
                 let returns = plan.returns * self.seen.unwrap_or(1.0);
                 self.direct = self.direct.add(now - start, plan.power, returns, 1.0);
+                self.direct.rays += self.rays.saturating_sub(self.shot_rays) as f64;
                 self.history.clear();
                 self.indirect_shots = 0;
             }
@@ -227,7 +277,11 @@ impl EtaEstimator {
                         // What the phase leaves unshot is not known before it ends: the
                         // returns stand for it (the target is far below).
                         let after = phase.prior(phase.returns, 0.0);
-                        Some(rest + queued as f64 * shot + after.unwrap_or(0.0))
+                        // Seconds per ray so far, this shot's included.
+                        let mut so_far = self.direct.add(seconds, 0.0, 0.0, 1.0);
+                        so_far.rays += self.rays.saturating_sub(self.shot_rays) as f64;
+                        let far = so_far.far_seconds(self.far_visits);
+                        Some(rest + queued as f64 * shot + after.unwrap_or(0.0) + far)
                     }
                     ShotKind::Indirect => self
                         .after_direct(left)
@@ -249,31 +303,42 @@ impl EtaEstimator {
             return self.direct_prior(self.y?);
         };
         let model = self.indirect_model(left);
-        if self.indirect_shots < MIN_SHOTS || span < WINDOW_NATS {
-            // Until the history fills its window it says little (the first shots, of the most
-            // concentrated power, shed nats fastest): at least what the direct phase suggested.
-            let Some(prior) = self.direct_prior(self.y_phase) else {
-                return if self.indirect_shots < MIN_SHOTS {
-                    None
-                } else {
-                    model
-                };
+        // Until the history fills its window it says little (the first shots, of the most
+        // concentrated power, shed nats fastest): at least what the direct phase suggested.
+        let Some((prior, far)) = self.direct_prior_parts(self.y_phase) else {
+            return if self.indirect_shots < MIN_SHOTS {
+                None
+            } else {
+                model
             };
-            // The evidence weighs in as the window fills.
-            let w = (span / WINDOW_NATS).clamp(0.0, 1.0);
-            let rest = (prior - (tn - t0)).max(0.0);
-            return Some(match model {
-                Some(m) if self.indirect_shots >= MIN_SHOTS => (1.0 - w) * rest + w * m,
-                _ => rest,
-            });
+        };
+        let elapsed = tn - t0;
+        // The evidence weighs in as the window fills; the far-field part of the prior (foreseen
+        // shot by shot, not taken from the power) only as its seconds pass.
+        let by_nats = (span / WINDOW_NATS).clamp(0.0, 1.0);
+        let by_time = (elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0);
+        let far_share = (far / prior).clamp(0.0, 1.0);
+        let w = (1.0 - far_share) * by_nats + far_share * by_nats.min(by_time);
+        let rest = (prior - elapsed).max(0.0);
+        match model {
+            Some(m) if self.indirect_shots >= MIN_SHOTS => Some((1.0 - w) * rest + w * m),
+            _ => Some(rest),
         }
-        model
     }
 
     /// The prior from the end of the direct phase, which left ln ratio `y` of the base unshot.
     fn direct_prior(&self, y: f64) -> Option<f64> {
+        self.direct_prior_parts(y).map(|(prior, _)| prior)
+    }
+
+    /// [`EtaEstimator::direct_prior`] and its far-field part.
+    fn direct_prior_parts(&self, y: f64) -> Option<(f64, f64)> {
         let unshot = y.exp() * self.base;
-        self.direct.prior(unshot, self.target_ln.exp() * self.base)
+        let power = self
+            .direct
+            .prior(unshot, self.target_ln.exp() * self.base)?;
+        let far = self.direct.far_seconds(self.far_visits);
+        Some((power + far, far))
     }
 
     /// The model on the indirect shots' evidence, `left` nats from the target: the seconds per
@@ -388,7 +453,26 @@ mod tests {
         back: f64,
         shot: impl Fn(f64) -> (f64, f64),
     ) -> (Vec<(f64, Option<f64>)>, f64) {
+        synthetic_solve_foreseen(0.0, direct, returns, seen, back, shot)
+    }
+
+    /// The direct shot traces [`RAYS_PER_SECOND`].
+    const RAYS_PER_SECOND: f64 = 1e6;
+
+    /// [`synthetic_solve`] with the indirect phase foreseen to make `far_visits` far-field
+    /// visits (none when 0), told before the direct shot.
+    fn synthetic_solve_foreseen(
+        far_visits: f64,
+        direct: f64,
+        returns: f64,
+        seen: f64,
+        back: f64,
+        shot: impl Fn(f64) -> (f64, f64),
+    ) -> (Vec<(f64, Option<f64>)>, f64) {
         let mut e = EtaEstimator::new(1e-3, None);
+        if far_visits > 0.0 {
+            e.far_visits_foreseen(far_visits);
+        }
         let mut out = Vec::new();
         e.solve_started(0.0, 1.0, EMITTED);
         out.push((0.0, e.estimate(0.0, 0.0)));
@@ -401,11 +485,13 @@ mod tests {
         let mut t = 0.5;
         while t < direct {
             e.returns_seen(seen);
+            e.rays_traced((t * RAYS_PER_SECOND) as u64);
             out.push((t, e.estimate(t, t / direct)));
             t += 0.5;
         }
         let mut t = direct;
         let r1 = returns * seen / RECEIVED;
+        e.rays_traced((t * RAYS_PER_SECOND) as u64);
         e.shot_finished(t, r1, RECEIVED);
         out.push((t, e.estimate(t, 0.0)));
         let (mut y, mut u) = (r1.ln(), 0.0);
@@ -461,7 +547,7 @@ mod tests {
         let phase = Phase {
             seconds: 10.0,
             power: 100.0,
-            returns: 0.0,
+            ..Phase::default()
         };
         let close = |a: Option<f64>, b: f64| (a.unwrap() - b).abs() < 1e-9;
         assert!(close(phase.prior(10.0, 0.0), 0.1 * 10.0 / 0.9));
@@ -487,6 +573,31 @@ mod tests {
         assert!((total - 60.0 - indirect).abs() < 0.1, "{total}");
         let worst = worst_ratios(&reports, total, 0.05);
         assert!(worst.0 > 0.9 && worst.1 < 1.1, "{worst:?}");
+    }
+
+    /// A large scene under a sky: a direct shot of 40 s whose returns foresee 4 s of power to
+    /// send, then an indirect phase twenty times that, most of it far-field visits (one per
+    /// root per shot, whatever the power). Told the visits, the prior counts them at the direct
+    /// shot's seconds per ray and the ETA is within a factor 2 from a fifth of the solve on;
+    /// without them it is several times too short there (city_64 of the scaling benchmark).
+    #[test]
+    fn eta_prior_counts_the_far_field_of_a_large_scene() {
+        let (returns, back) = (15.0, 0.15);
+        let power_prior = 40.0 / EMITTED * returns / (1.0 - back);
+        let visits = 5e6;
+        let far = visits * FAR_VISIT_RAYS / RAYS_PER_SECOND;
+        let indirect = power_prior + far;
+        let nats = (returns / RECEIVED / 1e-3).ln();
+        let step = 0.02;
+        let dt = indirect / (nats / step);
+        let run = |v: f64| synthetic_solve_foreseen(v, 40.0, returns, 1.0, back, |_| (step, dt));
+        let (reports, total) = run(visits);
+        assert!((total - 40.0 - indirect).abs() < 0.5, "{total}");
+        let worst = worst_ratios(&reports, total, 0.2);
+        assert!(within_twice(worst), "{worst:?}");
+        let (blind, total) = run(0.0);
+        let worst = worst_ratios(&blind, total, 0.2);
+        assert!(worst.0 < 0.3, "{worst:?}");
     }
 
     /// The receivers done so far get a third of what their plan expected (the sky seen through

@@ -18,6 +18,7 @@ mod element_source;
 mod eta;
 mod far_field;
 pub(crate) mod hierarchy;
+mod indirect_forecast;
 pub mod kernel;
 pub(crate) mod lights;
 pub(crate) mod node_reflectance;

@@ -10,6 +10,7 @@
 //! reports between shots are the solver's), so small scenes report exactly as before.
 
 use super::eta::{EtaEstimator, ShotPlan};
+use super::visibility::Visibility;
 use super::{Progress, SolverParams, REPORT_INTERVAL};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{self, RecvTimeoutError};
@@ -152,10 +153,13 @@ pub(super) struct Reporter<'a> {
     start: Instant,
     observe: &'a mut dyn FnMut(&Progress),
     links: &'a AtomicU64,
+    /// Counts the rays traced (the ETA's measure of the machine's speed).
+    visibility: &'a Visibility,
     eta: EtaEstimator,
     /// The last report after a shot (before any: the start).
     last: Progress,
     shot_running: bool,
+    foreseen: bool,
 }
 
 impl<'a> Reporter<'a> {
@@ -163,6 +167,7 @@ impl<'a> Reporter<'a> {
         start: Instant,
         observe: &'a mut dyn FnMut(&Progress),
         links: &'a AtomicU64,
+        visibility: &'a Visibility,
         params: &SolverParams,
         roots: usize,
     ) -> Self {
@@ -170,6 +175,7 @@ impl<'a> Reporter<'a> {
             start,
             observe,
             links,
+            visibility,
             eta: EtaEstimator::new(params.target_unshot, params.max_seconds),
             last: Progress {
                 iterations: 0,
@@ -182,11 +188,25 @@ impl<'a> Reporter<'a> {
                 eta_seconds: None,
             },
             shot_running: false,
+            foreseen: false,
         }
     }
 
-    fn seconds(&self) -> f64 {
+    /// Seconds since the start, the rays traced so far counted into the ETA.
+    fn seconds(&mut self) -> f64 {
+        self.eta.rays_traced(self.visibility.rays_traced());
         self.start.elapsed().as_secs_f64()
+    }
+
+    /// The indirect phase is foreseen to make `visits` far-field receiver visits.
+    pub(super) fn far_visits_foreseen(&mut self, visits: f64) {
+        self.eta.far_visits_foreseen(visits);
+        self.foreseen = true;
+    }
+
+    /// Whether the indirect phase has been foreseen.
+    pub(super) fn has_forecast(&self) -> bool {
+        self.foreseen
     }
 
     /// A shot of `plan` begins, after `iterations` shots.

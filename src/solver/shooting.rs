@@ -12,6 +12,7 @@ use super::element_source::{ElementShot, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
+use super::indirect_forecast::{forecast, Exchange, ForecastInput, IndirectForecast};
 use super::kernel::point_polygon_form_factor;
 use super::lights;
 use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
@@ -96,7 +97,14 @@ pub fn solve(
         link_points: &link_points,
     };
     let mut convergence = Vec::new();
-    let mut reporter = Reporter::new(start, observe, &counters.links, &params, roots.len());
+    let mut reporter = Reporter::new(
+        start,
+        observe,
+        &counters.links,
+        visibility,
+        &params,
+        roots.len(),
+    );
     let mut iterations = shoot_lights(&ctx, lights, far, &mut hierarchies, &mut reporter);
     if !lights.is_empty() {
         // What the lights delivered: direct irradiance integrated over each face.
@@ -158,6 +166,7 @@ pub fn solve(
             &ctx,
             (shooter, kind),
             facing_eps,
+            params.target_unshot,
             &mut hierarchies,
             &mut unshot,
             (&mut reporter, iterations),
@@ -175,6 +184,10 @@ pub fn solve(
             direct_left -= 1;
             if direct_left == 0 {
                 ratio_base = received_direct(&hierarchies, &roots);
+                // The indirect phase foreseen from what the direct phase left.
+                let target = params.target_unshot * ratio_base;
+                let f = foresee_indirect(&ctx, &hierarchies, &unshot, target, facing_eps);
+                reporter.far_visits_foreseen(f.far_visits);
             }
         }
     }
@@ -389,6 +402,7 @@ fn shoot(
     ctx: &ShotContext,
     (shooter, kind): (usize, ShotKind),
     facing_eps: f64,
+    target_unshot: f64,
     hierarchies: &mut [Hierarchy],
     unshot: &mut [f64],
     (reporter, iterations): (&mut Reporter, u64),
@@ -472,6 +486,33 @@ fn shoot(
     );
     let expected = |ri: usize| received[ri].max(0.0) * mean_rgb_sum(roots[ri].rho) / 3.0;
     let returns = (0..roots.len()).map(expected).sum();
+    if direct && !reporter.has_forecast() {
+        // The indirect phase foreseen from what this shot is expected to leave unshot, until
+        // the direct phase ends and leaves the real figure (`solve`).
+        // Each receiver's share as the few rays of `seen_fraction` see it (the plan's
+        // estimate has no occluder: under a sky it would count every wall between buildings).
+        let seen: Vec<f64> = (0..roots.len())
+            .into_par_iter()
+            .map(|ri| {
+                if received[ri] > 0.0 {
+                    seen_fraction(ctx, shooter, ri)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        // Emitters' unshot power is their emission until their direct shots take it.
+        let emits = |ri: usize| mean_rgb_sum(roots[ri].exitance) > 0.0;
+        let after: Vec<f64> = (0..roots.len())
+            .map(|ri| if emits(ri) { 0.0 } else { unshot[ri] } + expected(ri) * seen[ri])
+            .collect();
+        let base: f64 = (0..roots.len())
+            .map(|ri| received[ri].max(0.0) * seen[ri])
+            .sum();
+        let target = target_unshot * base;
+        let f = foresee_indirect(ctx, hierarchies, &after, target, facing_eps);
+        reporter.far_visits_foreseen(f.far_visits);
+    }
     let returns_units = CostUnits::new(returns);
     reporter.shot_started(
         iterations,
@@ -542,6 +583,64 @@ fn shoot(
     with_reports(work, &mut |c| reporter.within_shot(c, receivers));
     hierarchies[shooter] = source_h;
     !interrupted.load(Ordering::Relaxed)
+}
+
+/// The share of root `shooter` that root `ri` sees, from five rays: from its link point to the
+/// shooter's, and to the points halfway from there to the shooter's corners.
+fn seen_fraction(ctx: &ShotContext, shooter: usize, ri: usize) -> f64 {
+    let (sroot, root) = (&ctx.roots[shooter], &ctx.roots[ri]);
+    let (c, p) = (ctx.link_points[shooter], ctx.link_points[ri]);
+    let corners = sroot.corners();
+    let targets = std::iter::once(c).chain(corners.iter().map(|&k| c + 0.5 * (k - c)));
+    let ignore = [sroot.face.0, root.face.0];
+    let (mut seen, mut all) = (0, 0);
+    for q in targets {
+        all += 1;
+        if ctx.visibility.visible(p, q, ignore) {
+            seen += 1;
+        }
+    }
+    f64::from(seen) / f64::from(all)
+}
+
+/// The indirect phase foreseen (`indirect_forecast.rs`) from `unshot` W per root, down to
+/// `target` W: reflected light lands in proportion to face area times reflectance, and roots
+/// exchange light as a shot's plan foresees it (`unoccluded_received`, `faces_each_other`).
+fn foresee_indirect(
+    ctx: &ShotContext,
+    hierarchies: &[Hierarchy],
+    unshot: &[f64],
+    target: f64,
+    facing_eps: f64,
+) -> IndirectForecast {
+    let roots = ctx.roots;
+    let receives = |r: usize| !hierarchies[r].nodes.is_empty();
+    let share: Vec<f64> = (0..roots.len())
+        .map(|r| {
+            if receives(r) {
+                roots[r].face_area_m2 * mean_rgb_sum(roots[r].rho)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let bound_per_watt: Vec<f64> = roots
+        .iter()
+        .map(|r| r.area_m2 / r.face_area_m2.max(f64::MIN_POSITIVE))
+        .collect();
+    let input = ForecastInput {
+        unshot,
+        share: &share,
+        bound_per_watt: &bound_per_watt,
+        target,
+        threshold: ctx.threshold,
+    };
+    forecast(&input, &|s, r| {
+        (receives(r) && faces_each_other(&roots[s], &roots[r], facing_eps)).then(|| Exchange {
+            back: unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0,
+            transfer_bound: far_field::transfer_fraction_bound(&ctx.spheres[s], &ctx.spheres[r]),
+        })
+    })
 }
 
 /// After a shot, what the shooter shot is no longer unshot: on a direct shot exactly the emission
