@@ -37,9 +37,9 @@ const MAX_RETURN: f64 = 0.95;
 const MIN_SHOTS: usize = 2;
 /// The shots per nat are counted over the last this many nats of the history.
 const WINDOW_NATS: f64 = 1.0;
-/// The share of its own seconds the far-field part of the prior must see pass before the
-/// indirect shots' evidence replaces it (their first nats, the hot spots of the direct light
-/// draining, are the fastest of the phase).
+/// The share of the prior's seconds that must pass before the indirect shots' evidence replaces
+/// its far-field part (their first nats, the hot spots of the direct light draining, are the
+/// fastest of the phase).
 const PRIOR_TRUST: f64 = 0.25;
 /// Steps of the history, and nats they span, before its decay is fitted ([`EtaEstimator::decay`]).
 const MIN_DECAY_STEPS: usize = 3;
@@ -53,6 +53,9 @@ const HISTORY_STEP: f64 = 1e-3;
 /// recomputed, besides the shot's share of checks (docs/performance-notes.md, "The ETA's
 /// prior counts the far field").
 const FAR_VISIT_RAYS: f64 = 20.0;
+/// Rays the direct phase must have traced before its seconds per ray price the far-field visits
+/// (the first rays of a shot come with its set-up, and would make the first reports jump).
+const MIN_PRICED_RAYS: f64 = 1e4;
 
 /// Estimates the seconds left in a solve from what the solver knows: the clock, the shot in
 /// progress (its plan, its seconds so far, the fraction of its cost done and what its receivers
@@ -132,19 +135,21 @@ struct Phase {
 }
 
 impl Phase {
-    fn add(self, seconds: f64, power: f64, returns: f64, times: f64) -> Phase {
+    /// The phase with `times` more shots of `seconds`, `power` W sent, `returns` W back and
+    /// `rays` traced.
+    fn add(self, seconds: f64, power: f64, returns: f64, rays: f64, times: f64) -> Phase {
         Phase {
             seconds: self.seconds + seconds * times,
             power: self.power + power * times,
             returns: self.returns + returns * times,
-            rays: self.rays,
+            rays: self.rays + rays * times,
         }
     }
 
     /// Seconds of `visits` far-field receiver visits, at the phase's seconds per ray
-    /// ([`FAR_VISIT_RAYS`] each); 0 before it traced any ray.
+    /// ([`FAR_VISIT_RAYS`] each); 0 before it traced [`MIN_PRICED_RAYS`].
     fn far_seconds(&self, visits: f64) -> f64 {
-        if self.rays > 0.0 {
+        if self.rays >= MIN_PRICED_RAYS {
             visits * FAR_VISIT_RAYS * self.seconds / self.rays
         } else {
             0.0
@@ -228,8 +233,8 @@ impl EtaEstimator {
         match self.shot.take() {
             Some((start, plan)) if plan.kind != ShotKind::Indirect => {
                 let returns = plan.returns * self.seen.unwrap_or(1.0);
-                self.direct = self.direct.add(now - start, plan.power, returns, 1.0);
-                self.direct.rays += self.rays.saturating_sub(self.shot_rays) as f64;
+                let rays = self.rays_of_shot();
+                self.direct = self.direct.add(now - start, plan.power, returns, rays, 1.0);
                 self.history.clear();
                 self.indirect_shots = 0;
             }
@@ -271,15 +276,14 @@ impl EtaEstimator {
                     ShotKind::Light { left: queued } | ShotKind::Direct { left: queued } => {
                         let shot = seconds + rest;
                         let returns = plan.returns * self.seen.unwrap_or(1.0);
-                        let phase = self
-                            .direct
-                            .add(shot, plan.power, returns, 1.0 + queued as f64);
+                        let phase =
+                            self.direct
+                                .add(shot, plan.power, returns, 0.0, 1.0 + queued as f64);
                         // What the phase leaves unshot is not known before it ends: the
                         // returns stand for it (the target is far below).
                         let after = phase.prior(phase.returns, 0.0);
                         // Seconds per ray so far, this shot's included.
-                        let mut so_far = self.direct.add(seconds, 0.0, 0.0, 1.0);
-                        so_far.rays += self.rays.saturating_sub(self.shot_rays) as f64;
+                        let so_far = self.direct.add(seconds, 0.0, 0.0, self.rays_of_shot(), 1.0);
                         let far = so_far.far_seconds(self.far_visits);
                         Some(rest + queued as f64 * shot + after.unwrap_or(0.0) + far)
                     }
@@ -303,27 +307,36 @@ impl EtaEstimator {
             return self.direct_prior(self.y?);
         };
         let model = self.indirect_model(left);
+        let enough_shots = self.indirect_shots >= MIN_SHOTS;
         // Until the history fills its window it says little (the first shots, of the most
         // concentrated power, shed nats fastest): at least what the direct phase suggested.
         let Some((prior, far)) = self.direct_prior_parts(self.y_phase) else {
-            return if self.indirect_shots < MIN_SHOTS {
-                None
-            } else {
-                model
-            };
+            return if enough_shots { model } else { None };
         };
         let elapsed = tn - t0;
         // The evidence weighs in as the window fills; the far-field part of the prior (foreseen
-        // shot by shot, not taken from the power) only as its seconds pass.
+        // shot by shot, not taken from the power) only as the prior's seconds pass.
         let by_nats = (span / WINDOW_NATS).clamp(0.0, 1.0);
-        let by_time = (elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0);
-        let far_share = (far / prior).clamp(0.0, 1.0);
+        let (by_time, far_share) = if prior > 0.0 {
+            let by_time = (elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0);
+            (by_time, (far / prior).clamp(0.0, 1.0))
+        } else {
+            (1.0, 0.0)
+        };
         let w = (1.0 - far_share) * by_nats + far_share * by_nats.min(by_time);
+        if enough_shots && w >= 1.0 {
+            return model;
+        }
         let rest = (prior - elapsed).max(0.0);
         match model {
-            Some(m) if self.indirect_shots >= MIN_SHOTS => Some((1.0 - w) * rest + w * m),
+            Some(m) if enough_shots => Some((1.0 - w) * rest + w * m),
             _ => Some(rest),
         }
+    }
+
+    /// Rays traced since the shot in progress (or the last one) began.
+    fn rays_of_shot(&self) -> f64 {
+        self.rays.saturating_sub(self.shot_rays) as f64
     }
 
     /// The prior from the end of the direct phase, which left ln ratio `y` of the base unshot.

@@ -585,8 +585,9 @@ fn shoot(
     !interrupted.load(Ordering::Relaxed)
 }
 
-/// The share of root `shooter` that root `ri` sees, from five rays: from its link point to the
-/// shooter's, and to the points halfway from there to the shooter's corners.
+/// The share of root `shooter` that root `ri` sees, from a ray per target: from its link point
+/// to the shooter's, and to the points halfway from there to each of the shooter's corners (five
+/// rays to a parallelogram, four to a triangle).
 fn seen_fraction(ctx: &ShotContext, shooter: usize, ri: usize) -> f64 {
     let (sroot, root) = (&ctx.roots[shooter], &ctx.roots[ri]);
     let (c, p) = (ctx.link_points[shooter], ctx.link_points[ri]);
