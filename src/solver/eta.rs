@@ -1,10 +1,13 @@
 //! The estimate of the seconds left in a solve, which the CLI and the service both show.
 //!
 //! Owns [`EtaEstimator`], fed by the reporter (`progress.rs`) with the clock, each shot's
-//! [`ShotPlan`] and the unshot ratio after it; and the cost model it assumes (its doc).
+//! [`ShotPlan`] and the unshot ratio after it; and the cost model it assumes (its doc). The
+//! indirect shots' evidence and the model read off it live in `history.rs`.
 //!
 //! Invariants: an estimate is never negative, is capped by what is left of the time budget, and
 //! is 0 once the target is reached; nothing before the first report (`tests::eta_*`).
+
+use history::{IndirectHistory, WINDOW_NATS};
 
 /// What a shot shoots, for the ETA: how many shots of its kind are left after it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,25 +38,17 @@ const MAX_RETURN: f64 = 0.95;
 /// Indirect shots finished, and nats shed ([`WINDOW_NATS`]), before their history alone is used
 /// (before it, the prior less the seconds since counts too, when there was a direct phase).
 const MIN_SHOTS: usize = 2;
-/// The shots per nat are counted over the last this many nats of the history.
-const WINDOW_NATS: f64 = 1.0;
 /// The share of the prior's seconds that must pass before the indirect shots' evidence replaces
-/// its far-field part (their first nats, the hot spots of the direct light draining, are the
-/// fastest of the phase).
+/// a prior priced by the foreseen shots (their first nats, the hot spots of the direct light
+/// draining, are the fastest of the phase).
 const PRIOR_TRUST: f64 = 0.25;
-/// Steps of the history, and nats they span, before its decay is fitted ([`EtaEstimator::decay`]).
-const MIN_DECAY_STEPS: usize = 3;
-const MIN_DECAY_SPAN: f64 = 0.05;
-/// Nats of progress below which a shot updates the last point of the history instead of adding
-/// one (bounds the history by the nats from the start to the target, not by the shots).
-const HISTORY_STEP: f64 = 1e-3;
-/// What one far-field receiver visit of an indirect shot costs, in rays of the direct phase (its
-/// seconds over the rays it traced, so the machine and its load are the phase's): a visit is one
-/// ray, one exact form factor, a constant added to the receiver's tree and its unshot power
-/// recomputed, besides the shot's share of checks (docs/performance-notes.md, "The ETA's
-/// prior counts the far field").
-const FAR_VISIT_RAYS: f64 = 20.0;
-/// Rays the direct phase must have traced before its seconds per ray price the far-field visits
+/// What one indirect shot costs, in rays of the direct phase (its seconds over the rays it traced,
+/// so the machine and its load are the phase's): a shot's work is mostly near its shooter
+/// (refining its links to the roots close by), about the same per shot whatever the size of the
+/// scene; its far field is cheap (docs/performance-notes.md, "The ETA's prior counts the
+/// shots").
+const SHOT_RAYS: f64 = 50_000.0;
+/// Rays the direct phase must have traced before its seconds per ray price the foreseen shots
 /// (the first rays of a shot come with its set-up, and would make the first reports jump).
 const MIN_PRICED_RAYS: f64 = 1e4;
 
@@ -76,20 +71,21 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 ///   one), and `k = U / P`, `P` the power it sent, the share taken to come back at every bounce
 ///   (at most [`MAX_RETURN`]). Under a sky most of the power leaves, `k` is small and the prior a
 ///   fraction of the direct phase; in a closed room it is a multiple (`tests::eta_prior_*`).
-///   To that the prior adds the far-field visits the indirect phase is foreseen to make
-///   (`indirect_forecast.rs`: one per root a shot reaches in its far field, whatever the power:
-///   the term that grows like the roots squared), [`FAR_VISIT_RAYS`] each at the direct phase's
-///   seconds per ray (`eta_prior_counts_the_far_field_of_a_large_scene`).
+///   That prior follows the power; on a large scene the shots' count is what grows (each sheds
+///   little of a power spread over many roots), so the prior is at least the shots the indirect
+///   phase is foreseen to take (`indirect_forecast.rs`), [`SHOT_RAYS`] each at the direct
+///   phase's seconds per ray (`eta_prior_counts_the_shots_of_a_large_scene`).
 /// - Then the indirect shots are the evidence: with `u` the nats of unshot ratio shed since the
 ///   direct phase, the seconds per nat are those of the last [`WINDOW_NATS`] of the history
 ///   (taken at its middle), falling like `exp(-beta u)`, `beta` the slope of ln seconds per nat
-///   against `u` over the history ([`EtaEstimator::decay`]), within [0, 1]: 0 is a ratio falling
+///   against `u` over the history (`history.rs`), within [0, 1]: 0 is a ratio falling
 ///   exponentially in time, 1 seconds per nat falling like the unshot power. Not the shots'
 ///   seconds against their power: under a sky later shots are cheaper but each sheds fewer
 ///   nats, the unshot power being spread over more roots, and their seconds per nat hold
 ///   (`eta_follows_cheaper_shots_that_shed_fewer_nats`). Until the history spans the window (and
 ///   [`MIN_SHOTS`]), the prior less the seconds since, the evidence weighing in as the window
-///   fills. The seconds left are the
+///   fills (and, when the prior is the shots', as [`PRIOR_TRUST`] of its seconds pass). The
+///   seconds left are the
 ///   integral down to the target, less the seconds of the shot in progress (at least what its
 ///   cost done says is left of it).
 /// - Capped by what is left of the time budget, 0 once the target is reached.
@@ -110,16 +106,11 @@ pub(super) struct EtaEstimator {
     shot: Option<(f64, ShotPlan)>,
     /// For the shot in progress, what its receivers done got of what was expected of them.
     seen: Option<f64>,
-    /// Since the last direct shot: (seconds, nats shed since then, indirect shots), the first
-    /// point at its end; the nats never decrease.
-    history: Vec<(f64, f64, f64)>,
-    /// ln of the unshot ratio at the first point of `history`.
-    y_phase: f64,
-    /// Indirect shots finished.
-    indirect_shots: usize,
-    /// The far-field receiver visits the indirect phase is foreseen to make
-    /// (`indirect_forecast.rs`; 0 until foreseen).
-    far_visits: f64,
+    /// The indirect shots since the last direct shot.
+    history: IndirectHistory,
+    /// The shots the indirect phase is foreseen to take (`indirect_forecast.rs`; 0 until
+    /// foreseen).
+    shots_foreseen: f64,
     /// Rays traced by the solve at the last count, and at the start of the shot in progress.
     rays: u64,
     shot_rays: u64,
@@ -146,11 +137,11 @@ impl Phase {
         }
     }
 
-    /// Seconds of `visits` far-field receiver visits, at the phase's seconds per ray
-    /// ([`FAR_VISIT_RAYS`] each); 0 before it traced [`MIN_PRICED_RAYS`].
-    fn far_seconds(&self, visits: f64) -> f64 {
+    /// Seconds of `shots` indirect shots, at the phase's seconds per ray ([`SHOT_RAYS`] each);
+    /// 0 before it traced [`MIN_PRICED_RAYS`].
+    fn shots_seconds(&self, shots: f64) -> f64 {
         if self.rays >= MIN_PRICED_RAYS {
-            visits * FAR_VISIT_RAYS * self.seconds / self.rays
+            shots * SHOT_RAYS * self.seconds / self.rays
         } else {
             0.0
         }
@@ -178,10 +169,8 @@ impl EtaEstimator {
             direct: Phase::default(),
             shot: None,
             seen: None,
-            history: Vec::new(),
-            y_phase: 0.0,
-            indirect_shots: 0,
-            far_visits: 0.0,
+            history: IndirectHistory::default(),
+            shots_foreseen: 0.0,
             rays: 0,
             shot_rays: 0,
         }
@@ -192,11 +181,11 @@ impl EtaEstimator {
         self.rays = self.rays.max(rays);
     }
 
-    /// The indirect phase is foreseen to make `visits` far-field receiver visits: their seconds
-    /// join the prior.
-    pub(super) fn far_visits_foreseen(&mut self, visits: f64) {
-        if visits.is_finite() {
-            self.far_visits = visits.max(0.0);
+    /// The indirect phase is foreseen to take `shots` shots: their seconds bound the prior from
+    /// below.
+    pub(super) fn indirect_shots_foreseen(&mut self, shots: f64) {
+        if shots.is_finite() {
+            self.shots_foreseen = shots.max(0.0);
         }
     }
 
@@ -236,23 +225,8 @@ impl EtaEstimator {
                 let rays = self.rays_of_shot();
                 self.direct = self.direct.add(now - start, plan.power, returns, rays, 1.0);
                 self.history.clear();
-                self.indirect_shots = 0;
             }
-            Some(_) => {
-                if self.history.is_empty() {
-                    self.history.push((self.t_last, 0.0, 0.0));
-                    self.y_phase = before;
-                }
-                self.indirect_shots += 1;
-                let u = self.y_phase - y;
-                let n = self.history.len();
-                let point = (now, u, self.indirect_shots as f64);
-                if n >= 2 && u - self.history[n - 2].1 < HISTORY_STEP {
-                    self.history[n - 1] = point;
-                } else {
-                    self.history.push(point);
-                }
-            }
+            Some(_) => self.history.shot_finished(self.t_last, before, now, y),
             None => {}
         }
         self.seen = None;
@@ -284,8 +258,8 @@ impl EtaEstimator {
                         let after = phase.prior(phase.returns, 0.0);
                         // Seconds per ray so far, this shot's included.
                         let so_far = self.direct.add(seconds, 0.0, 0.0, self.rays_of_shot(), 1.0);
-                        let far = so_far.far_seconds(self.far_visits);
-                        Some(rest + queued as f64 * shot + after.unwrap_or(0.0) + far)
+                        let shots = so_far.shots_seconds(self.shots_foreseen);
+                        Some(rest + queued as f64 * shot + after.unwrap_or(0.0).max(shots))
                     }
                     ShotKind::Indirect => self
                         .after_direct(left)
@@ -302,28 +276,24 @@ impl EtaEstimator {
     /// Seconds from the last finished shot to the target, `left` nats away, after the direct
     /// shots.
     fn after_direct(&self, left: f64) -> Option<f64> {
-        let (Some(&(t0, _, _)), Some(&(tn, span, _))) = (self.history.first(), self.history.last())
-        else {
+        let Some((elapsed, span)) = self.history.span() else {
             return self.direct_prior(self.y?);
         };
-        let model = self.indirect_model(left);
-        let enough_shots = self.indirect_shots >= MIN_SHOTS;
+        let model = self.history.model(left);
+        let enough_shots = self.history.shots() >= MIN_SHOTS;
         // Until the history fills its window it says little (the first shots, of the most
         // concentrated power, shed nats fastest): at least what the direct phase suggested.
-        let Some((prior, far)) = self.direct_prior_parts(self.y_phase) else {
+        let Some((prior, by_shots)) = self.direct_prior_parts(self.history.y_start()) else {
             return if enough_shots { model } else { None };
         };
-        let elapsed = tn - t0;
-        // The evidence weighs in as the window fills; the far-field part of the prior (foreseen
-        // shot by shot, not taken from the power) only as the prior's seconds pass.
+        // The evidence weighs in as the window fills; against a prior of foreseen shots (not
+        // taken from the power, which the first shots shed fastest) only as its seconds pass.
         let by_nats = (span / WINDOW_NATS).clamp(0.0, 1.0);
-        let (by_time, far_share) = if prior > 0.0 {
-            let by_time = (elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0);
-            (by_time, (far / prior).clamp(0.0, 1.0))
+        let w = if by_shots && prior > 0.0 {
+            by_nats.min((elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0))
         } else {
-            (1.0, 0.0)
+            by_nats
         };
-        let w = (1.0 - far_share) * by_nats + far_share * by_nats.min(by_time);
         if enough_shots && w >= 1.0 {
             return model;
         }
@@ -344,81 +314,15 @@ impl EtaEstimator {
         self.direct_prior_parts(y).map(|(prior, _)| prior)
     }
 
-    /// [`EtaEstimator::direct_prior`] and its far-field part.
-    fn direct_prior_parts(&self, y: f64) -> Option<(f64, f64)> {
+    /// [`EtaEstimator::direct_prior`], and whether the foreseen shots' seconds set it (they
+    /// exceed the power's).
+    fn direct_prior_parts(&self, y: f64) -> Option<(f64, bool)> {
         let unshot = y.exp() * self.base;
         let power = self
             .direct
             .prior(unshot, self.target_ln.exp() * self.base)?;
-        let far = self.direct.far_seconds(self.far_visits);
-        Some((power + far, far))
-    }
-
-    /// The model on the indirect shots' evidence, `left` nats from the target: the seconds per
-    /// nat of the last [`WINDOW_NATS`] of the history (taken at its middle), falling like
-    /// `exp(-beta u)` from there, `beta` the [`EtaEstimator::decay`] of the history.
-    fn indirect_model(&self, left: f64) -> Option<f64> {
-        let &(tn, span, _) = self.history.last()?;
-        if span <= 0.0 {
-            return None;
-        }
-        let window = span.min(WINDOW_NATS);
-        let g_window = (tn - self.time_at(span - window)) / window;
-        if g_window.is_nan() || g_window <= 0.0 {
-            return None;
-        }
-        let beta = self.decay();
-        let g_now = g_window * (-beta * window / 2.0).exp();
-        Some(g_now * nats_integral(beta, left))
-    }
-
-    /// How fast the seconds per nat fall with the nats shed: minus the slope of `ln(dt / du)`
-    /// against `u` over the history's steps (least squares, each step weighted by its `du`),
-    /// within [0, 1]; 0 until [`MIN_DECAY_STEPS`] steps span [`MIN_DECAY_SPAN`] nats
-    /// (`the_decay_is_fitted_on_the_seconds_per_nat`).
-    fn decay(&self) -> f64 {
-        let steps = || {
-            self.history.windows(2).filter_map(|w| {
-                let ((ta, ua, _), (tb, ub, _)) = (w[0], w[1]);
-                let (dt, du) = (tb - ta, ub - ua);
-                (dt > 0.0 && du > 0.0).then(|| (0.5 * (ua + ub), (dt / du).ln(), du))
-            })
-        };
-        let (mut n, mut w, mut wx, mut wy) = (0usize, 0.0, 0.0, 0.0);
-        for (x, y, dw) in steps() {
-            n += 1;
-            w += dw;
-            wx += dw * x;
-            wy += dw * y;
-        }
-        if n < MIN_DECAY_STEPS || w < MIN_DECAY_SPAN {
-            return 0.0;
-        }
-        let (mx, my) = (wx / w, wy / w);
-        let (mut sxx, mut sxy) = (0.0, 0.0);
-        for (x, y, dw) in steps() {
-            sxx += dw * (x - mx) * (x - mx);
-            sxy += dw * (x - mx) * (y - my);
-        }
-        if sxx <= 1e-12 * w {
-            return 0.0;
-        }
-        (-sxy / sxx).clamp(0.0, 1.0)
-    }
-
-    /// Seconds at which the history had shed `u` nats (linear between its points).
-    fn time_at(&self, u: f64) -> f64 {
-        let h = &self.history;
-        let i = h.partition_point(|p| p.1 < u);
-        if i == 0 {
-            return h[0].0;
-        }
-        if i >= h.len() {
-            return h[h.len() - 1].0;
-        }
-        let (ta, ua, _) = h[i - 1];
-        let (tb, ub, _) = h[i];
-        ta + (tb - ta) * (u - ua) / (ub - ua)
+        let shots = self.direct.shots_seconds(self.shots_foreseen);
+        Some((power.max(shots), shots > power))
     }
 }
 
@@ -431,19 +335,11 @@ fn rest_of_shot(seconds: f64, fraction: f64) -> f64 {
     }
 }
 
-/// `integral_0^x exp(-beta v) dv`.
-fn nats_integral(beta: f64, x: f64) -> f64 {
-    if beta.abs() < 1e-9 {
-        x
-    } else {
-        -(-beta * x).exp_m1() / beta
-    }
-}
-
 /// ln of an unshot ratio (a ratio of 0, nothing emitted, is as good as any target).
 fn ln_ratio(ratio: f64) -> f64 {
     ratio.max(1e-300).ln()
 }
 
+mod history;
 #[cfg(test)]
 mod tests;

@@ -1,6 +1,5 @@
 //! What the indirect phase will cost, foreseen from where the unshot power is before it starts:
-//! the shots it will take and the far-field receiver visits they will make (the ETA's prior,
-//! `eta.rs`).
+//! the shots it will take (the ETA's prior, `eta.rs`, prices each at a constant).
 //!
 //! Owns [`forecast`] and the model it runs ([`shot_powers`]): progressive shooting of the root
 //! with the most unshot power, each shot sending all of it and `back` of it coming back, spread
@@ -12,15 +11,13 @@
 //!
 //! Invariants: the forecast is finite and non-negative and needs no randomness (strata of the
 //! roots sorted by power, receivers by a fixed shuffle); the exchanges it asks for are bounded by
-//! the sample sizes whatever the scene, its other work is a sort of the roots (`tests::*`).
+//! the sample sizes whatever the scene, its other work is one sort of the roots (`tests::*`).
 
 /// Roots the model is simulated on, at most.
 const MAX_SAMPLE: usize = 2048;
 /// Of those, the roots of most unshot power, taken at weight 1 (power held by a few roots is
 /// never left out of the strata).
 const TOP_ROOTS: usize = 512;
-/// Receivers each sampled shooter's visits are counted over, at most (scaled to the whole).
-const MAX_RECEIVERS: usize = 256;
 /// Receivers the share that comes back is summed over, at most (scaled to the whole; exact up to
 /// this many roots).
 const MAX_BACK_RECEIVERS: usize = 16384;
@@ -31,23 +28,13 @@ const RECEIVER_SEED: u64 = 17;
 /// Simulated shots per sampled root, at most (a closed room of reflectance 0.95 takes about 60
 /// per root from 1 down to 1e-3).
 const MAX_SHOTS_PER_ROOT: usize = 200;
+/// The largest share of a shot taken to come back (a closed room of reflectance 0.95).
+const MAX_BACK: f64 = 0.95;
 
-/// The indirect phase foreseen: its shots and the receivers they visit in the far field (one ray
-/// and one constant each: their cost does not grow with the power shot).
+/// The indirect phase foreseen: the shots it will take.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(super) struct IndirectForecast {
     pub shots: f64,
-    pub far_visits: f64,
-}
-
-/// How shooter `s` and receiver `r` exchange light, when they face each other: the share of 1 W
-/// sent by `s` that `r` sends back (its reflectance times what it would receive with no
-/// occluder), and the bound on the share of what `s` sends that `r` can receive (which decides
-/// whether `r` is in the shot's far field, `far_field.rs`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Exchange {
-    pub back: f64,
-    pub transfer_bound: f64,
 }
 
 /// The roots as the forecast sees them.
@@ -56,13 +43,8 @@ pub(super) struct ForecastInput<'a> {
     pub unshot: &'a [f64],
     /// Where reflected light lands, per root (any scale; face area times reflectance).
     pub share: &'a [f64],
-    /// Per root, the power bound of a shot per W of it (an extended domain's area over its face's).
-    pub bound_per_watt: &'a [f64],
     /// The unshot power to reach, W.
     pub target: f64,
-    /// A receiver is in a shot's far field when the shot's power bound times its transfer bound is
-    /// at most this, W.
-    pub threshold: f64,
 }
 
 /// A root of the sample and how many roots it stands for.
@@ -72,93 +54,68 @@ struct Sampled {
     weight: f64,
 }
 
-/// The indirect phase foreseen from `input`, `exchange(s, r)` telling how roots `s` and `r`
-/// exchange light (`None` when they do not face each other).
+/// The indirect phase foreseen from `input`, `back(s, r)` the share of 1 W sent by root `s` that
+/// root `r` sends back (its reflectance times what it would receive with no occluder; `None`
+/// when they do not face each other).
 pub(super) fn forecast(
     input: &ForecastInput,
-    exchange: &dyn Fn(usize, usize) -> Option<Exchange>,
+    back: &dyn Fn(usize, usize) -> Option<f64>,
 ) -> IndirectForecast {
     let n = input.unshot.len();
     let total: f64 = input.unshot.iter().sum();
     if n == 0 || total <= input.target || !total.is_finite() {
         return IndirectForecast::default();
     }
-    let back = {
-        let receivers = receiver_sample(n, MAX_BACK_RECEIVERS);
-        let scale = n as f64 / receivers.len() as f64;
-        back_share(input.unshot, &receivers, scale, exchange)
-    };
-    let receivers = receiver_sample(n, MAX_RECEIVERS);
-    let scale_receivers = n as f64 / receivers.len() as f64;
-    let sample = weighted_sample(input.unshot, input.share);
-    // Per sampled root, the transfer bounds of the receivers it faces (largest first).
-    let bounds: Vec<Vec<f64>> = sample
-        .iter()
-        .map(|s| {
-            let mut b: Vec<f64> = receivers
-                .iter()
-                .filter(|&&r| r != s.root)
-                .filter_map(|&r| exchange(s.root, r))
-                .map(|e| e.transfer_bound)
-                .collect();
-            b.sort_by(|x, y| y.total_cmp(x));
-            b
-        })
+    // The roots that hold or can receive power, by unshot power, largest first.
+    let mut order: Vec<usize> = (0..n)
+        .filter(|&i| input.unshot[i] > 0.0 || input.share[i] > 0.0)
         .collect();
+    order.sort_by(|&a, &b| input.unshot[b].total_cmp(&input.unshot[a]));
+    let back = back_share(input.unshot, &order, back);
+    let sample = weighted_sample(&order);
     let u: Vec<f64> = sample.iter().map(|s| input.unshot[s.root]).collect();
     let share: Vec<f64> = sample.iter().map(|s| input.share[s.root]).collect();
     let weight: Vec<f64> = sample.iter().map(|s| s.weight).collect();
     let sample_total: f64 = u.iter().zip(&weight).map(|(u, w)| u * w).sum();
     let target = input.target * sample_total / total;
-    let mut out = IndirectForecast::default();
-    for (k, power) in shot_powers(&u, &share, &weight, back, target) {
-        let b = &bounds[k];
-        let bound = power * input.bound_per_watt[sample[k].root];
-        // Receivers whose transfer bound lets through more than the threshold are refined.
-        let near = if bound > 0.0 {
-            b.partition_point(|&t| t * bound > input.threshold)
-        } else {
-            0
-        };
-        out.shots += weight[k];
-        out.far_visits += weight[k] * scale_receivers * (b.len() - near) as f64;
-    }
-    debug_assert!(out.shots.is_finite() && out.far_visits >= 0.0);
-    out
+    let shots: f64 = shot_powers(&u, &share, &weight, back, target)
+        .iter()
+        .map(|&(k, _)| weight[k])
+        .sum();
+    debug_assert!(shots.is_finite() && shots >= 0.0);
+    IndirectForecast { shots }
 }
 
 /// The share of a shot's power that comes back as unshot power: over [`BACK_SHOOTERS`] shooters
-/// taken in strata of the unshot power, what the sampled `receivers` (each standing for `scale`
-/// roots) reflect of 1 W (at most 0.95).
-fn back_share(
-    unshot: &[f64],
-    receivers: &[usize],
-    scale: f64,
-    exchange: &dyn Fn(usize, usize) -> Option<Exchange>,
-) -> f64 {
-    let shooters = strata_by_power(unshot, BACK_SHOOTERS);
+/// taken in strata of the unshot power (`order`, the roots by power, largest first), what at
+/// most [`MAX_BACK_RECEIVERS`] receivers (a fixed shuffle, scaled to the whole) reflect of 1 W
+/// (at most [`MAX_BACK`]).
+fn back_share(unshot: &[f64], order: &[usize], back: &dyn Fn(usize, usize) -> Option<f64>) -> f64 {
+    let n = unshot.len();
+    let shooters = strata_by_power(unshot, order, BACK_SHOOTERS);
     if shooters.is_empty() {
         return 0.0;
     }
+    let receivers = receiver_sample(n, MAX_BACK_RECEIVERS);
+    let scale = n as f64 / receivers.len() as f64;
     let sum: f64 = shooters
         .iter()
         .map(|&s| {
             receivers
                 .iter()
                 .filter(|&&r| r != s)
-                .filter_map(|&r| exchange(s, r))
-                .map(|e| e.back)
+                .filter_map(|&r| back(s, r))
                 .sum::<f64>()
         })
         .sum();
-    (scale * sum / shooters.len() as f64).clamp(0.0, 0.95)
+    (scale * sum / shooters.len() as f64).clamp(0.0, MAX_BACK)
 }
 
 /// The model's shots: (sampled root, power sent per root it stands for) of each, in order, from
 /// unshot powers `u` per root, entry `i` standing for `weight[i]` roots alike (shooting it shoots
 /// them all), with `back` of every shot returning over the roots in proportion to `share`, until
 /// the unshot power is at most `target`.
-pub(super) fn shot_powers(
+fn shot_powers(
     u: &[f64],
     share: &[f64],
     weight: &[f64],
@@ -200,18 +157,14 @@ pub(super) fn shot_powers(
     shots
 }
 
-/// The roots that hold or can receive power, at most [`MAX_SAMPLE`] of them: every one when
-/// there are no more; else the [`TOP_ROOTS`] of most unshot power at weight 1, and one root per
-/// stratum of the others sorted by power (largest first), standing for its stratum.
-fn weighted_sample(unshot: &[f64], share: &[f64]) -> Vec<Sampled> {
-    let mut order: Vec<usize> = (0..unshot.len())
-        .filter(|&i| unshot[i] > 0.0 || share[i] > 0.0)
-        .collect();
-    let one = |root| Sampled { root, weight: 1.0 };
+/// At most [`MAX_SAMPLE`] of the roots `order` (by unshot power, largest first): every one when
+/// there are no more; else the first [`TOP_ROOTS`] at weight 1, and one root per stratum of the
+/// others, standing for its stratum.
+fn weighted_sample(order: &[usize]) -> Vec<Sampled> {
+    let one = |&root: &usize| Sampled { root, weight: 1.0 };
     if order.len() <= MAX_SAMPLE {
-        return order.into_iter().map(one).collect();
+        return order.iter().map(one).collect();
     }
-    order.sort_by(|&a, &b| unshot[b].total_cmp(&unshot[a]));
     let (top, rest) = order.split_at(TOP_ROOTS);
     let k = MAX_SAMPLE - TOP_ROOTS;
     let step = rest.len() as f64 / k as f64;
@@ -219,7 +172,7 @@ fn weighted_sample(unshot: &[f64], share: &[f64]) -> Vec<Sampled> {
         root: rest[((j as f64 + 0.5) * step) as usize],
         weight: step,
     });
-    top.iter().copied().map(one).chain(strata).collect()
+    top.iter().map(one).chain(strata).collect()
 }
 
 /// At most `m` indices of `0..n`, drawn by a fixed shuffle (evenly spaced ones would alias with
@@ -233,15 +186,14 @@ fn receiver_sample(n: usize, m: usize) -> Vec<usize> {
     all
 }
 
-/// At most `m` roots, one at the middle of each of `m` equal strata of the total unshot power
-/// (the roots sorted by power, largest first).
-fn strata_by_power(unshot: &[f64], m: usize) -> Vec<usize> {
-    let mut order: Vec<usize> = (0..unshot.len()).filter(|&i| unshot[i] > 0.0).collect();
-    order.sort_by(|&a, &b| unshot[b].total_cmp(&unshot[a]));
-    let total: f64 = order.iter().map(|&i| unshot[i]).sum();
+/// At most `m` of the roots `order` (by unshot power, largest first), one at the middle of each
+/// of `m` equal strata of the total unshot power.
+fn strata_by_power(unshot: &[f64], order: &[usize], m: usize) -> Vec<usize> {
+    let lit = order.partition_point(|&i| unshot[i] > 0.0);
+    let total: f64 = order[..lit].iter().map(|&i| unshot[i]).sum();
     let mut picked = Vec::new();
     let mut acc = 0.0;
-    for &i in &order {
+    for &i in &order[..lit] {
         acc += unshot[i];
         while picked.len() < m && acc >= (picked.len() as f64 + 0.5) / m as f64 * total {
             picked.push(i);
@@ -298,15 +250,10 @@ mod tests {
         assert!((ratio - 1.0).abs() < 0.1, "{weighted:?} {spelled:?}");
     }
 
-    /// `copies` copies of five roots, each root facing the other roots of its copy (transfer
-    /// bound `bound`, a tenth of every shot coming back from each), then `black` roots that
-    /// neither hold nor take light; returns the forecast and the exchanges asked for.
-    fn copies(
-        copies: usize,
-        black: usize,
-        bound: f64,
-        threshold: f64,
-    ) -> (IndirectForecast, usize) {
+    /// `copies` copies of five roots, each root facing the other roots of its copy (a tenth of
+    /// every shot coming back from each), then `black` roots that neither hold nor take light;
+    /// returns the forecast and the exchanges asked for.
+    fn copies(copies: usize, black: usize) -> (IndirectForecast, usize) {
         let set = [5.0, 4.0, 3.0, 2.0, 1.0];
         let lit = 5 * copies;
         let n = lit + black;
@@ -314,35 +261,28 @@ mod tests {
             .map(|i| if i < lit { set[i % 5] } else { 0.0 })
             .collect();
         let share: Vec<f64> = (0..n).map(|i| if i < lit { 1.0 } else { 0.0 }).collect();
-        let bound_per_watt = vec![1.0; n];
         let input = ForecastInput {
             unshot: &unshot,
             share: &share,
-            bound_per_watt: &bound_per_watt,
             target: 1e-3 * 15.0 * copies as f64,
-            threshold,
         };
         let calls = Cell::new(0);
         let f = forecast(&input, &|s, r| {
             calls.set(calls.get() + 1);
-            (s < lit && r < lit && s / 5 == r / 5).then_some(Exchange {
-                back: 0.1,
-                transfer_bound: bound,
-            })
+            (s < lit && r < lit && s / 5 == r / 5).then_some(0.1)
         });
         (f, calls.get())
     }
 
-    /// Every receiver of the shooter's copy is visited by every shot, in the far field when the
-    /// shot's bound times its transfer bound is within the threshold, else refined (not counted).
+    /// A scene within the sample is simulated exactly: every root at weight 1, `back` the four
+    /// other roots of the copy reflecting a tenth each.
     #[test]
-    fn far_visits_are_the_shots_times_the_far_receivers() {
-        let (all_far, _) = copies(1, 0, 1e-9, 1.0);
-        assert!(all_far.shots > 5.0);
-        assert!((all_far.far_visits - 4.0 * all_far.shots).abs() < 1e-9);
-        let (all_near, _) = copies(1, 0, 1.0, 1e-12);
-        assert!(all_near.shots > 5.0);
-        assert_eq!(all_near.far_visits, 0.0);
+    fn a_small_scene_is_simulated_exactly() {
+        let (f, _) = copies(1, 0);
+        let u = [5.0, 4.0, 3.0, 2.0, 1.0];
+        let exact = shot_powers(&u, &[1.0; 5], &[1.0; 5], 0.4, 15e-3);
+        assert!(exact.len() > 5);
+        assert_eq!(f.shots, exact.len() as f64);
     }
 
     /// A scene of many copies of a set takes about as many times the shots of the set (not
@@ -351,32 +291,25 @@ mod tests {
     /// against ten times the exact simulation of 400.
     #[test]
     fn a_sample_stands_for_a_large_scene() {
-        let (one, _) = copies(1, 0, 1e-9, 1.0);
-        let (ten, _) = copies(10, 0, 1e-9, 1.0);
+        let (one, _) = copies(1, 0);
+        let (ten, _) = copies(10, 0);
         let ratio = ten.shots / (10.0 * one.shots);
         assert!((ratio - 1.0).abs() < 0.15, "{ten:?} {one:?}");
-        let (exact, _) = copies(400, 0, 1e-9, 1.0);
-        let (many, calls) = copies(4000, 0, 1e-9, 1.0);
+        let (exact, _) = copies(400, 0);
+        let (many, calls) = copies(4000, 0);
         let ratio = many.shots / (10.0 * exact.shots);
         assert!((ratio - 1.0).abs() < 0.1, "{many:?} {exact:?}");
-        let ratio = many.far_visits / (10.0 * exact.far_visits);
-        assert!((ratio - 1.0).abs() < 0.2, "{many:?} {exact:?}");
-        assert!(
-            calls <= MAX_SAMPLE * MAX_RECEIVERS + BACK_SHOOTERS * MAX_BACK_RECEIVERS,
-            "{calls}"
-        );
+        assert!(calls <= BACK_SHOOTERS * MAX_BACK_RECEIVERS, "{calls}");
     }
 
     /// Roots with no power that take no light change nothing: they are never sampled to stand
     /// for the others (400 copies, alone and among as many black roots as lit ones).
     #[test]
     fn black_roots_do_not_count() {
-        let (alone, _) = copies(400, 0, 1e-9, 1.0);
-        let (among, _) = copies(400, 2000, 1e-9, 1.0);
+        let (alone, _) = copies(400, 0);
+        let (among, _) = copies(400, 2000);
         let ratio = among.shots / alone.shots;
         assert!((ratio - 1.0).abs() < 0.05, "{among:?} {alone:?}");
-        let ratio = among.far_visits / alone.far_visits;
-        assert!((ratio - 1.0).abs() < 0.3, "{among:?} {alone:?}");
     }
 
     /// All the power in a few roots of a large scene (one lit corner): they are shot, however
@@ -386,16 +319,24 @@ mod tests {
         let n = 20_000;
         let unshot: Vec<f64> = (0..n).map(|i| if i < 3 { 1.0 } else { 0.0 }).collect();
         let share = vec![1.0; n];
-        let bound_per_watt = vec![1.0; n];
         let input = ForecastInput {
             unshot: &unshot,
             share: &share,
-            bound_per_watt: &bound_per_watt,
             target: 0.5,
-            threshold: 1.0,
         };
         let f = forecast(&input, &|_, _| None);
         assert_eq!(f.shots, 3.0, "{f:?}");
+    }
+
+    /// The strata of the power: the root at the middle of each equal share of it (a root
+    /// holding several shares is picked for each), black roots never.
+    #[test]
+    fn strata_split_the_power_evenly() {
+        let unshot = [0.0, 6.0, 1.0, 1.0, 1.0, 1.0, 0.0];
+        let order = [1, 2, 3, 4, 5, 0, 6];
+        assert_eq!(strata_by_power(&unshot, &order, 2), vec![1, 3]);
+        assert_eq!(strata_by_power(&unshot, &order, 4), vec![1, 1, 2, 4]);
+        assert!(strata_by_power(&[0.0; 3], &[0, 1, 2], 4).is_empty());
     }
 
     /// Nothing to shoot, or already within the target: nothing foreseen.
@@ -404,19 +345,15 @@ mod tests {
         let input = ForecastInput {
             unshot: &[0.5, 0.5],
             share: &[1.0, 1.0],
-            bound_per_watt: &[1.0, 1.0],
             target: 1.0,
-            threshold: 1.0,
         };
-        let exchange = |_: usize, _: usize| None;
-        assert_eq!(forecast(&input, &exchange), IndirectForecast::default());
+        let back = |_: usize, _: usize| None;
+        assert_eq!(forecast(&input, &back), IndirectForecast::default());
         let empty = ForecastInput {
             unshot: &[],
             share: &[],
-            bound_per_watt: &[],
             target: 0.0,
-            threshold: 1.0,
         };
-        assert_eq!(forecast(&empty, &exchange), IndirectForecast::default());
+        assert_eq!(forecast(&empty, &back), IndirectForecast::default());
     }
 }

@@ -10,6 +10,7 @@
 //! reports between shots are the solver's), so small scenes report exactly as before.
 
 use super::eta::{EtaEstimator, ShotPlan};
+use super::indirect_forecast::IndirectForecast;
 use super::visibility::Visibility;
 use super::{Progress, SolverParams, REPORT_INTERVAL};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -198,9 +199,9 @@ impl<'a> Reporter<'a> {
         self.start.elapsed().as_secs_f64()
     }
 
-    /// The indirect phase is foreseen to make `visits` far-field receiver visits.
-    pub(super) fn far_visits_foreseen(&mut self, visits: f64) {
-        self.eta.far_visits_foreseen(visits);
+    /// The indirect phase foreseen (`indirect_forecast.rs`).
+    pub(super) fn indirect_foreseen(&mut self, forecast: IndirectForecast) {
+        self.eta.indirect_shots_foreseen(forecast.shots);
         self.foreseen = true;
     }
 

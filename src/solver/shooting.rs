@@ -12,7 +12,7 @@ use super::element_source::{ElementShot, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field::{self, Sphere};
 use super::hierarchy::Hierarchy;
-use super::indirect_forecast::{forecast, Exchange, ForecastInput, IndirectForecast};
+use super::indirect_forecast::{forecast, ForecastInput, IndirectForecast};
 use super::kernel::point_polygon_form_factor;
 use super::lights;
 use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
@@ -187,7 +187,7 @@ pub fn solve(
                 // The indirect phase foreseen from what the direct phase left.
                 let target = params.target_unshot * ratio_base;
                 let f = foresee_indirect(&ctx, &hierarchies, &unshot, target, facing_eps);
-                reporter.far_visits_foreseen(f.far_visits);
+                reporter.indirect_foreseen(f);
             }
         }
     }
@@ -511,7 +511,7 @@ fn shoot(
             .sum();
         let target = target_unshot * base;
         let f = foresee_indirect(ctx, hierarchies, &after, target, facing_eps);
-        reporter.far_visits_foreseen(f.far_visits);
+        reporter.indirect_foreseen(f);
     }
     let returns_units = CostUnits::new(returns);
     reporter.shot_started(
@@ -625,22 +625,14 @@ fn foresee_indirect(
             }
         })
         .collect();
-    let bound_per_watt: Vec<f64> = roots
-        .iter()
-        .map(|r| r.area_m2 / r.face_area_m2.max(f64::MIN_POSITIVE))
-        .collect();
     let input = ForecastInput {
         unshot,
         share: &share,
-        bound_per_watt: &bound_per_watt,
         target,
-        threshold: ctx.threshold,
     };
     forecast(&input, &|s, r| {
-        (receives(r) && faces_each_other(&roots[s], &roots[r], facing_eps)).then(|| Exchange {
-            back: unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0,
-            transfer_bound: far_field::transfer_fraction_bound(&ctx.spheres[s], &ctx.spheres[r]),
-        })
+        (receives(r) && faces_each_other(&roots[s], &roots[r], facing_eps))
+            .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
     })
 }
 
