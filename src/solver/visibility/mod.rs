@@ -208,11 +208,14 @@ impl Visibility {
             (1u64 << targets.len()) - 1
         };
         let Some(bvh) = &self.bvh else { return all };
-        let mut segs = [const { None }; 64];
+        // The packet's segments, in a buffer kept between calls: an array of 64 on the stack is
+        // zeroed at every call (`docs/performance-notes.md`, the profile of 2026-12-04).
+        let mut segs = PACKET_SEGMENTS.take();
+        segs.clear();
+        segs.extend(targets.iter().take(64).map(|&q| self.segment(p, q)));
         let mut open = 0u64;
-        for (i, &q) in targets.iter().enumerate().take(64) {
-            segs[i] = self.segment(p, q);
-            open |= u64::from(segs[i].is_some()) << i;
+        for (i, s) in segs.iter().enumerate() {
+            open |= u64::from(s.is_some()) << i;
         }
         let traced = open;
         let seg = |i: u32| segs[i as usize].as_ref().expect("an open segment");
@@ -276,6 +279,7 @@ impl Visibility {
             }
         }
         PACKET_STACK.set(stack);
+        PACKET_SEGMENTS.set(segs);
         // Visible: the segments too short to block, and those traced that stayed open.
         all & !(traced & !open)
     }
@@ -345,6 +349,8 @@ thread_local! {
     /// The stack of [`Visibility::visible_from`] (node, segments that reach it), kept between
     /// calls so that a packet allocates nothing.
     static PACKET_STACK: Cell<Vec<(u32, u64)>> = const { Cell::new(Vec::new()) };
+    /// The segments of [`Visibility::visible_from`]'s packet (`None`: too short to block).
+    static PACKET_SEGMENTS: Cell<Vec<Option<Segment>>> = const { Cell::new(Vec::new()) };
     /// Index in `Visibility::tris` of the occluder that last blocked a segment on this thread,
     /// tested first by the next segment (`u32::MAX`: none yet). Shared by every `Visibility` the
     /// thread uses: an index from another one only costs a wasted test.
