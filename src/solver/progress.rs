@@ -201,6 +201,7 @@ impl<'a> Reporter<'a> {
 
     /// The indirect phase foreseen (`indirect_forecast.rs`).
     pub(super) fn indirect_foreseen(&mut self, forecast: IndirectForecast) {
+        tracing::debug!(shots = forecast.shots, "indirect phase foreseen");
         self.eta.indirect_shots_foreseen(forecast.shots);
         self.foreseen = true;
     }

@@ -12,6 +12,13 @@ pub(super) const WINDOW_NATS: f64 = 1.0;
 /// ([`IndirectHistory::decay`]).
 const MIN_DECAY_STEPS: usize = 3;
 const MIN_DECAY_SPAN: f64 = 0.05;
+/// The decay taken before the history says otherwise ([`IndirectHistory::decay`]): the seconds
+/// per nat halving every two nats. Fitted on half-nat bins of whole indirect phases, the scaling
+/// ladder's cities give 0 to 0.35, the Red Eclipse level 0.27, the Kenney building 0.4 and the
+/// Cornell box 0.8 (docs/performance-notes.md, "The ETA's decay prior").
+const DECAY_PRIOR: f64 = 0.35;
+/// How far from [`DECAY_PRIOR`] a history's decay is taken to be, a priori.
+const DECAY_PRIOR_SD: f64 = 0.1;
 /// Nats of progress below which a shot updates the last point of the history instead of adding
 /// one.
 const HISTORY_STEP: f64 = 1e-3;
@@ -88,8 +95,14 @@ impl IndirectHistory {
 
     /// How fast the seconds per nat fall with the nats shed: minus the slope of `ln(dt / du)`
     /// against `u` over the history's steps (least squares, each step weighted by its `du`),
-    /// within [0, 1]; 0 until [`MIN_DECAY_STEPS`] steps span [`MIN_DECAY_SPAN`] nats
-    /// (`tests::the_decay_is_fitted_on_the_seconds_per_nat`).
+    /// shrunk towards [`DECAY_PRIOR`] as far as the steps scatter about their line, within
+    /// [0, 1]; [`DECAY_PRIOR`] until [`MIN_DECAY_STEPS`] steps span [`MIN_DECAY_SPAN`] nats.
+    ///
+    /// The shrinkage is the posterior mean of the slope under a normal prior
+    /// `N(DECAY_PRIOR, DECAY_PRIOR_SD^2)`, the noise read off the residuals: steps that lie on
+    /// a line give its slope, whatever the prior (`tests::the_decay_is_fitted_on_the_seconds_per_nat`);
+    /// a few scattered shots, whose first nats are shed fastest, do not make a falling cost look
+    /// flat (`tests::a_scattered_history_keeps_the_decay_of_the_prior`).
     fn decay(&self) -> f64 {
         let steps = || {
             self.points.windows(2).filter_map(|w| {
@@ -106,7 +119,7 @@ impl IndirectHistory {
             wy += dw * y;
         }
         if n < MIN_DECAY_STEPS || w < MIN_DECAY_SPAN {
-            return 0.0;
+            return DECAY_PRIOR;
         }
         let (mx, my) = (wx / w, wy / w);
         let (mut sxx, mut sxy) = (0.0, 0.0);
@@ -115,9 +128,16 @@ impl IndirectHistory {
             sxy += dw * (x - mx) * (y - my);
         }
         if sxx <= 1e-12 * w {
-            return 0.0;
+            return DECAY_PRIOR;
         }
-        (-sxy / sxx).clamp(0.0, 1.0)
+        let fitted = -sxy / sxx;
+        // The noise of a step of unit weight (the slope's variance is that over sxx).
+        let residuals: f64 = steps()
+            .map(|(x, y, dw)| dw * ((y - my) + fitted * (x - mx)).powi(2))
+            .sum();
+        let noise = residuals / (n - 2) as f64;
+        let k = noise / (DECAY_PRIOR_SD * DECAY_PRIOR_SD);
+        ((sxx * fitted + k * DECAY_PRIOR) / (sxx + k)).clamp(0.0, 1.0)
     }
 
     /// Seconds at which the history had shed `u` nats (linear between its points).
@@ -169,11 +189,64 @@ mod tests {
             .collect();
         let beta = fitted(&halving);
         assert!((beta - 2f64.ln()).abs() < 1e-3, "{beta}");
-        assert_eq!(fitted(&halving[..3]), 0.0, "two steps are too few");
+        assert_eq!(fitted(&halving[..3]), DECAY_PRIOR, "two steps are too few");
         let steady: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, i as f64 * 0.3)).collect();
         assert!(fitted(&steady).abs() < 1e-12);
         let slowing: Vec<(f64, f64)> = (0..10).map(|i| (i as f64, (i as f64).sqrt())).collect();
         assert_eq!(fitted(&slowing), 0.0);
+    }
+
+    /// A history whose seconds per nat fall like the prior's decay but scatter about it, its
+    /// first half nat shed four times faster (the most concentrated power shot first, as on
+    /// the Red Eclipse level): the plain least-squares slope is below 0.1, the shrunk
+    /// decay stays near the prior's; the same steps on their line give their own slope.
+    #[test]
+    fn a_scattered_history_keeps_the_decay_of_the_prior() {
+        let rate = |i: usize, u: f64| {
+            let scatter = if u < 0.5 {
+                0.25
+            } else if i.is_multiple_of(2) {
+                2.0
+            } else {
+                0.5
+            };
+            (-DECAY_PRIOR * u).exp() * scatter
+        };
+        let history = |rate: &dyn Fn(usize, f64) -> f64| {
+            let (mut t, mut points) = (0.0, vec![(0.0, 0.0)]);
+            for i in 0..30 {
+                let (u, du) = (i as f64 * 0.1, 0.1);
+                t += rate(i, u + 0.5 * du) * du;
+                points.push((t, u + du));
+            }
+            IndirectHistory {
+                points,
+                ..IndirectHistory::default()
+            }
+        };
+        let scattered = history(&rate);
+        // The plain slope of ln(dt / du) against u, every step of equal weight.
+        let steps: Vec<(f64, f64)> = scattered
+            .points
+            .windows(2)
+            .map(|w| (0.5 * (w[0].1 + w[1].1), ((w[1].0 - w[0].0) / 0.1f64).ln()))
+            .collect();
+        let n = steps.len() as f64;
+        let (mx, my) = steps
+            .iter()
+            .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x / n, b + y / n));
+        let sxy: f64 = steps.iter().map(|&(x, y)| (x - mx) * (y - my)).sum();
+        let sxx: f64 = steps.iter().map(|&(x, _)| (x - mx) * (x - mx)).sum();
+        let plain = -sxy / sxx;
+        assert!(plain < 0.1, "plain slope {plain}");
+        let beta = scattered.decay();
+        assert!(
+            (beta - DECAY_PRIOR).abs() < 0.15 && beta > plain + 0.15,
+            "{beta} against {plain}"
+        );
+        // On its line, a decay of 0.8 is fitted as 0.8.
+        let clean = history(&|_, u| (-0.8 * u).exp());
+        assert!((clean.decay() - 0.8).abs() < 1e-3, "{}", clean.decay());
     }
 
     /// Shots that shed less than [`HISTORY_STEP`] each move the last point instead of adding
