@@ -78,7 +78,8 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 /// - Then the indirect shots are the evidence: with `u` the nats of unshot ratio shed since the
 ///   direct phase, the seconds per nat are those of the last [`WINDOW_NATS`] of the history
 ///   (taken at its middle), falling like `exp(-beta u)`, `beta` the slope of ln seconds per nat
-///   against `u` over the history (`history.rs`), within [0, 1]: 0 is a ratio falling
+///   against `u` over the history, shrunk towards a prior decay as far as its steps scatter
+///   (0.35 before three steps; `history.rs`), within [0, 1]: 0 is a ratio falling
 ///   exponentially in time, 1 seconds per nat falling like the unshot power. Not the shots'
 ///   seconds against their power: under a sky later shots are cheaper but each sheds fewer
 ///   nats, the unshot power being spread over more roots, and their seconds per nat hold

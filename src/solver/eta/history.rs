@@ -170,7 +170,8 @@ mod tests {
     use super::*;
 
     /// The decay is minus the slope of ln seconds per nat against the nats shed, within [0, 1],
-    /// and 0 until three steps: seconds per nat halving every nat is ln 2; growing is 0.
+    /// and the prior's until three steps: seconds per nat halving every nat (on its line) is
+    /// ln 2; growing is 0.
     #[test]
     fn the_decay_is_fitted_on_the_seconds_per_nat() {
         let fitted = |points: &[(f64, f64)]| {
