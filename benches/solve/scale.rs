@@ -8,7 +8,10 @@
 //! the reason when absent; `--no-zdm2` leaves zdm2 out). Each solve gets `--max-seconds S`
 //! (default 1800) and `--log-format json`; its stderr is read for progress events carrying
 //! `seconds` and `eta_seconds` (under `fields`, as tracing-subscriber's JSON puts them, or at top
-//! level) to judge the ETA once 20 % of the solve has passed.
+//! level) to judge the ETA once 20 % of the solve has passed. With `--keep DIR` the scenes, the
+//! outputs and each solve's log (`log.jsonl` in its output directory) are kept in `DIR`, for an
+//! offline look at the progress and the ETA; without it they go to a temporary directory,
+//! removed at the end.
 //!
 //! Prints per scene: triangles, seconds (`stats.seconds`), shots (`stats.iterations`), elements,
 //! links, peak memory, rays per second, unshot ratio, stop reason and the worst ETA ratio; then the
@@ -32,6 +35,7 @@ struct Options {
     max_n: usize,
     zdm2: bool,
     max_seconds: f64,
+    keep: Option<PathBuf>,
 }
 
 fn parse_options(args: &[String]) -> Result<Options, String> {
@@ -39,6 +43,7 @@ fn parse_options(args: &[String]) -> Result<Options, String> {
         max_n: 64,
         zdm2: true,
         max_seconds: 1800.0,
+        keep: None,
     };
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -58,6 +63,7 @@ fn parse_options(args: &[String]) -> Result<Options, String> {
                 }
             }
             "--no-zdm2" => o.zdm2 = false,
+            "--keep" => o.keep = Some(PathBuf::from(value(a)?)),
             other => return Err(format!("unknown option '{other}'")),
         }
     }
@@ -141,6 +147,8 @@ fn solve(scene: &Path, out: &Path, max_seconds: f64, threads: Option<&str>) -> R
     }
     let output = cmd.output().map_err(|e| format!("did not run: {e}"))?;
     let stderr = String::from_utf8_lossy(&output.stderr);
+    // The log beside the output, for `--keep` (best effort: the figures come from `stderr`).
+    let _ = std::fs::write(out.join("log.jsonl"), &output.stderr);
     if !output.status.success() {
         let last = stderr.lines().last().unwrap_or("").trim();
         return Err(format!("exit {}: {last}", output.status));
@@ -219,12 +227,14 @@ pub fn run(args: &[String]) {
     let o = match parse_options(args) {
         Ok(o) => o,
         Err(e) => {
-            eprintln!("scale: {e}; options: --max-n N, --no-zdm2, --max-seconds S");
+            eprintln!("scale: {e}; options: --max-n N, --no-zdm2, --max-seconds S, --keep DIR");
             std::process::exit(2);
         }
     };
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let tmp = std::env::temp_dir().join(format!("wavrad-bench-scale-{}", std::process::id()));
+    let tmp = o.keep.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("wavrad-bench-scale-{}", std::process::id()))
+    });
     if let Err(e) = std::fs::create_dir_all(&tmp) {
         eprintln!("scale: cannot create {}: {e}", tmp.display());
         std::process::exit(1);
@@ -352,5 +362,10 @@ pub fn run(args: &[String]) {
             }
         }
     }
-    let _ = std::fs::remove_dir_all(&tmp);
+    match &o.keep {
+        Some(dir) => println!("scenes, outputs and logs kept in {}", dir.display()),
+        None => {
+            let _ = std::fs::remove_dir_all(&tmp);
+        }
+    }
 }
