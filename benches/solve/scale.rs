@@ -1,9 +1,9 @@
 //! The scaling benchmark of issue 17: `cargo bench --bench solve -- scale [--max-n N] [--no-zdm2]
-//! [--max-seconds S]`.
+//! [--max-seconds S] [--keep DIR]`.
 //!
 //! Solves, each in its own `wavrad solve` process at default settings (so `peak_memory_bytes`, the
 //! process's VmHWM, is its own), the city ladder (`wavrad::scene::city::city_glb` of the Kenney
-//! building, N = 1, 4, 16, 64 up to `--max-n`, written to a temporary directory), then
+//! building, N = 1, 4, 16, 64 up to `--max-n`, written to a temporary directory or `--keep DIR`), then
 //! `redeclipse_dutility_lit.glb` and `sauerbraten_zdm2_lit.glb` from `../shared/scenes/` (SKIP with
 //! the reason when absent; `--no-zdm2` leaves zdm2 out). Each solve gets `--max-seconds S`
 //! (default 1800) and `--log-format json`; its stderr is read for progress events carrying
@@ -147,7 +147,9 @@ fn solve(scene: &Path, out: &Path, max_seconds: f64, threads: Option<&str>) -> R
     }
     let output = cmd.output().map_err(|e| format!("did not run: {e}"))?;
     let stderr = String::from_utf8_lossy(&output.stderr);
-    // The log beside the output, for `--keep` (best effort: the figures come from `stderr`).
+    // The log beside the output, for `--keep`, also when the solve failed before making `out`
+    // (best effort: the figures come from `stderr`).
+    let _ = std::fs::create_dir_all(out);
     let _ = std::fs::write(out.join("log.jsonl"), &output.stderr);
     if !output.status.success() {
         let last = stderr.lines().last().unwrap_or("").trim();
