@@ -33,7 +33,7 @@ import time
 import numpy as np
 import trimesh
 
-# wavrad's ENDPOINT_EPSILON_REL (src/solver/visibility.rs).
+# wavrad's ENDPOINT_EPSILON_REL (src/solver/visibility/mod.rs).
 ENDPOINT_EPSILON_REL = 1e-6
 # Rays per call into embreex (bounds the temporary arrays).
 BATCH = 1 << 18

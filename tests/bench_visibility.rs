@@ -75,6 +75,8 @@ fn check(scene: &Path, n: usize, name: &str) -> (usize, usize) {
         assert_eq!(line["occluded"], expected, "{threads} thread(s): {line}");
         assert!(line["seconds"].as_f64().unwrap() >= 0.0);
         assert!(line["per_second"].as_f64().unwrap() > 0.0);
+        let path = line["code_path"].as_str().unwrap_or_default();
+        assert!(["x86-64-v3", "baseline"].contains(&path), "{line}");
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert!(stderr.contains("BVH build"), "{stderr}");
     }

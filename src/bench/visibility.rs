@@ -41,6 +41,8 @@ pub struct OcclusionRun {
     /// Segments per second, all threads together.
     pub per_second: f64,
     pub threads: usize,
+    /// The instruction set the segment tests ran with (`Visibility::code_path`).
+    pub code_path: &'static str,
 }
 
 /// Reads a segments file: a JSON array of `[ax, ay, az, bx, by, bz]`, finite numbers.
@@ -101,6 +103,7 @@ pub fn trace(
             0.0
         },
         threads,
+        code_path: visibility.code_path(),
     })
 }
 

@@ -13,6 +13,13 @@
 //! `traverse!` with our own node test (`node_test.rs`: SSE2, same arithmetic as obvhs', but boxes
 //! culled behind half the box padding instead of 1e-4).
 //!
+//! Two code paths, one source: the segment tests (`visible_uncounted`, `visible_from`) are
+//! compiled for the baseline and, on x86_64, for x86-64-v3 (AVX2, FMA, BMI, LZCNT, POPCNT: the
+//! traversal's bit counts become single instructions, the node test takes eight children in one
+//! AVX2 vector), chosen once per `Visibility` from the CPU's features. No FMA is written and Rust
+//! contracts none, so both give the same verdicts bit for bit
+//! (`both_code_paths_give_the_same_verdicts`); `code_path` names the one that runs.
+//!
 //! Shadow cache: each thread remembers the occluder that last blocked one of its segments
 //! (`LAST_BLOCKER`) and tests it before traversing (a solve traces a receiver point against many
 //! points of one source, so what blocked the last ray mostly blocks the next). The cache only
@@ -26,7 +33,7 @@ mod node_test;
 pub use bounding_planes::bounding_planes;
 
 use glam::{DVec3, UVec2, Vec3A};
-use node_test::{bundle_slots, node_hits, slot_hits};
+use node_test::{bundle_slots, node_hits, slot_hits_for};
 use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
 use std::cell::Cell;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -69,6 +76,9 @@ pub struct Visibility {
     /// `BOX_PADDING_REL * diagonal`, the nearest exit of a box the node test keeps.
     box_padding: f32,
     rays: AtomicU64,
+    /// The CPU has x86-64-v3's features (AVX2, FMA, BMI, LZCNT, POPCNT): the segment tests run
+    /// compiled for them (see the module header).
+    x86_64_v3: bool,
 }
 
 impl std::fmt::Debug for Visibility {
@@ -127,6 +137,7 @@ impl Visibility {
             end_epsilon: ENDPOINT_EPSILON_REL * diagonal,
             box_padding: pad,
             rays: AtomicU64::new(0),
+            x86_64_v3: cpu_has_x86_64_v3(),
         }
     }
 
@@ -138,6 +149,16 @@ impl Visibility {
     /// The distance from either end of a segment within which hits do not count.
     pub fn end_epsilon(&self) -> f64 {
         self.end_epsilon
+    }
+
+    /// The instruction set the segment tests are compiled for on this CPU: `"x86-64-v3"` or
+    /// `"baseline"`.
+    pub fn code_path(&self) -> &'static str {
+        if self.x86_64_v3 {
+            "x86-64-v3"
+        } else {
+            "baseline"
+        }
     }
 
     /// Number of segment tests done so far.
@@ -164,6 +185,25 @@ impl Visibility {
     /// them once with [`Visibility::count_rays`]: one shared counter bumped per ray is a cache
     /// line every core writes (a tenth of a solve's time on two cores, found by profiling).
     pub(crate) fn visible_uncounted(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.x86_64_v3 {
+            // SAFETY: `x86_64_v3` is set only when the CPU has every feature the function enables.
+            return unsafe { self.visible_uncounted_v3(p, q, ignore) };
+        }
+        self.visible_uncounted_any::<false>(p, q, ignore)
+    }
+
+    /// [`Visibility::visible_uncounted`] compiled for x86-64-v3.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn visible_uncounted_v3(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
+        self.visible_uncounted_any::<true>(p, q, ignore)
+    }
+
+    /// [`Visibility::visible_uncounted`] for whatever instruction set its caller is compiled for;
+    /// `V3`: the caller is compiled for x86-64-v3 (the node test takes AVX2).
+    #[inline(always)]
+    fn visible_uncounted_any<const V3: bool>(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
         let Some(bvh) = &self.bvh else { return true };
         let Some(seg) = self.segment(p, q) else {
             return true;
@@ -182,13 +222,19 @@ impl Visibility {
         let mut node;
         let mut visible = true;
         'traversal: {
-            obvhs::traverse!(bvh, node, state, node_hits(node, ray, state.oct_inv4), {
-                if seg.blocked_by(&self.tris[state.primitive_id as usize], ignore) {
-                    visible = false;
-                    LAST_BLOCKER.with(|c| c.set(state.primitive_id));
-                    break 'traversal;
+            obvhs::traverse!(
+                bvh,
+                node,
+                state,
+                node_hits::<V3>(node, ray, state.oct_inv4),
+                {
+                    if seg.blocked_by(&self.tris[state.primitive_id as usize], ignore) {
+                        visible = false;
+                        LAST_BLOCKER.with(|c| c.set(state.primitive_id));
+                        break 'traversal;
+                    }
                 }
-            });
+            );
         }
         visible
     }
@@ -201,6 +247,30 @@ impl Visibility {
     /// segment still unblocked ([`bundle_slots`]), then against each such segment's ray
     /// ([`slot_hits`]); a segment leaves the packet at its first blocker. Not counted.
     pub(crate) fn visible_from(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
+        #[cfg(target_arch = "x86_64")]
+        if self.x86_64_v3 {
+            // SAFETY: `x86_64_v3` is set only when the CPU has every feature the function enables.
+            return unsafe { self.visible_from_v3(p, targets, ignore) };
+        }
+        self.visible_from_any::<false>(p, targets, ignore)
+    }
+
+    /// [`Visibility::visible_from`] compiled for x86-64-v3.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+    fn visible_from_v3(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
+        self.visible_from_any::<true>(p, targets, ignore)
+    }
+
+    /// [`Visibility::visible_from`] for whatever instruction set its caller is compiled for;
+    /// `V3`: the caller is compiled for x86-64-v3 (the node test takes AVX2).
+    #[inline(always)]
+    fn visible_from_any<const V3: bool>(
+        &self,
+        p: DVec3,
+        targets: &[DVec3],
+        ignore: [u32; 2],
+    ) -> u64 {
         debug_assert!(targets.len() <= 64, "{} targets", targets.len());
         let all = if targets.len() >= 64 {
             u64::MAX
@@ -251,7 +321,7 @@ impl Visibility {
             }
             let mut child_rays = [0u64; 8];
             for i in bits(mask) {
-                for slot in bits(u64::from(slot_hits(node, &seg(i).ray) & shared)) {
+                for slot in bits(u64::from(slot_hits_for::<V3>(node, &seg(i).ray) & shared)) {
                     child_rays[slot as usize] |= 1 << i;
                 }
             }
@@ -286,6 +356,7 @@ impl Visibility {
 
     /// The open segment `p`-`q` as the tests read it; `None` when it is within twice the end
     /// epsilon (nothing can block it).
+    #[inline(always)]
     fn segment(&self, p: DVec3, q: DVec3) -> Option<Segment> {
         let d = q - p;
         let len = d.length();
@@ -331,6 +402,23 @@ impl Segment {
             && tri.face != ignore[1]
             && intersect_edges(self.p, self.dir, tri.v0, tri.e1, tri.e2)
                 .is_some_and(|t| t > self.tmin && t < self.tmax)
+    }
+}
+
+/// True when the CPU has the features of the x86-64-v3 code path (always false elsewhere).
+fn cpu_has_x86_64_v3() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
+            && std::arch::is_x86_feature_detected!("bmi1")
+            && std::arch::is_x86_feature_detected!("bmi2")
+            && std::arch::is_x86_feature_detected!("lzcnt")
+            && std::arch::is_x86_feature_detected!("popcnt")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
     }
 }
 
@@ -509,6 +597,48 @@ mod tests {
             blocked[brute as usize] += 1;
         }
         assert!(blocked[0] > 30 && blocked[1] > 30, "{blocked:?}");
+    }
+
+    /// The x86-64-v3 code path gives the baseline's verdicts, bit for bit, single segments and
+    /// packets, ignored faces included: from points on the faces of a room cluttered with small
+    /// random triangles (so that the BVH has inner nodes) to random points and packets. On a CPU
+    /// without x86-64-v3 there is one path: the test says so and checks nothing more.
+    #[test]
+    fn both_code_paths_give_the_same_verdicts() {
+        let (mut tris, _) = room_with_block(DVec3::new(0.7, 0.1, 0.4), DVec3::new(0.5, 0.6, 0.3));
+        let mut rnd = xorshift(0xc0de_9a75);
+        for k in 0..300 {
+            let c = DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5);
+            let mut corner = || c + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * 0.1;
+            tris.push(([corner(), corner(), corner()], 12 + k % 7));
+        }
+        let fast = Visibility::new(tris.clone(), 3.0);
+        if !fast.x86_64_v3 {
+            eprintln!("skipped: this CPU has no x86-64-v3, the baseline is the only code path");
+            return;
+        }
+        let mut baseline = Visibility::new(tris.clone(), 3.0);
+        baseline.x86_64_v3 = false;
+        assert_eq!(
+            (fast.code_path(), baseline.code_path()),
+            ("x86-64-v3", "baseline")
+        );
+        let mut seen = [0usize; 2];
+        for i in 0..2000 {
+            let (p, face) = point_on_face(&tris[..24], &mut rnd);
+            let ignore = [face, 12 + (i % 7) as u32];
+            let targets: Vec<DVec3> = (0..1 + i % 64)
+                .map(|_| DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5))
+                .collect();
+            let packet = fast.visible_from(p, &targets, ignore);
+            assert_eq!(packet, baseline.visible_from(p, &targets, ignore), "{p}");
+            for &q in &targets {
+                let single = fast.visible(p, q, ignore);
+                assert_eq!(single, baseline.visible(p, q, ignore), "{p} -> {q}");
+                seen[single as usize] += 1;
+            }
+        }
+        assert!(seen[0] > 1000 && seen[1] > 1000, "{seen:?}");
     }
 
     #[test]

@@ -1,7 +1,8 @@
 //! Box tests on one node of obvhs' compressed wide BVH (CWBVH) for the segment tests of
 //! `visibility/mod.rs`: which children a ray's slab test passes ([`slot_hits`], and
 //! [`node_hits`] in the `hitmask` layout `obvhs::traverse!` reads), and which children a box
-//! overlaps ([`bundle_slots`], the packet's shared test).
+//! overlaps ([`bundle_slots`], the packet's shared test); [`slot_hits_avx2`], the slab test of
+//! the x86-64-v3 code path, eight children at once.
 //!
 //! Invariant: every test is conservative for the segment test: it never drops a child that
 //! holds a counted hit (`node_hits_keeps_every_child_obvhs_keeps`,
@@ -13,11 +14,12 @@ use obvhs::{cwbvh::node::CwBvhNode, ray::Ray};
 /// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
 /// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the child planes tested by
 /// [`slot_hits`]. Pinned by `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
+/// `V3`: test with [`slot_hits_avx2`] (only in code compiled for x86-64-v3).
 #[inline(always)]
-pub(super) fn node_hits(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+pub(super) fn node_hits<const V3: bool>(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
     let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
     let mut hits = 0;
-    let mut m = slot_hits(node, ray);
+    let mut m = slot_hits_for::<V3>(node, ray);
     while m != 0 {
         let i = m.trailing_zeros() as u64 * 8;
         hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
@@ -100,6 +102,72 @@ pub(super) fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
 #[inline(always)]
 pub(super) fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
     slot_hits_scalar(node, ray)
+}
+
+/// [`slot_hits_avx2`] when `V3` (the caller is compiled for x86-64-v3), else [`slot_hits`].
+#[inline(always)]
+pub(super) fn slot_hits_for<const V3: bool>(node: &CwBvhNode, ray: &Ray) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if V3 {
+        // SAFETY: `V3` is set only by the x86-64-v3 code path, which runs only on a CPU with AVX2.
+        return unsafe { slot_hits_avx2(node, ray) };
+    }
+    slot_hits(node, ray)
+}
+
+/// [`slot_hits`] with the eight children in one AVX2 vector: the same operations in the same
+/// order lane by lane (no FMA), so the same bits (`node_hits_keeps_every_child_obvhs_keeps`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn slot_hits_avx2(node: &CwBvhNode, ray: &Ray) -> u32 {
+    use std::arch::x86_64::*;
+    let adj_inv = node.compute_extent() * ray.inv_direction;
+    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
+    // The planes `lo` and `hi` of one axis, nearest first along the ray, as `plane * scale + offset`.
+    #[inline(always)]
+    fn slab(lo: &[u8; 8], hi: &[u8; 8], neg: bool, scale: f32, offset: f32) -> (__m256, __m256) {
+        let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
+        // SAFETY: AVX2 is enabled in the only caller; the loads read the 8 bytes of a [u8; 8].
+        unsafe {
+            let widen = |q: &[u8; 8]| {
+                _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
+                    q.as_ptr() as *const __m128i
+                )))
+            };
+            let (s, o) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
+            (
+                _mm256_add_ps(_mm256_mul_ps(widen(near), s), o),
+                _mm256_add_ps(_mm256_mul_ps(widen(far), s), o),
+            )
+        }
+    }
+    let d = ray.direction;
+    let (xn, xf) = slab(
+        &node.child_min_x,
+        &node.child_max_x,
+        d.x < 0.0,
+        adj_inv.x,
+        adj_orig.x,
+    );
+    let (yn, yf) = slab(
+        &node.child_min_y,
+        &node.child_max_y,
+        d.y < 0.0,
+        adj_inv.y,
+        adj_orig.y,
+    );
+    let (zn, zf) = slab(
+        &node.child_min_z,
+        &node.child_max_z,
+        d.z < 0.0,
+        adj_inv.z,
+        adj_orig.z,
+    );
+    let (eps, tmax) = (_mm256_set1_ps(ray.tmin), _mm256_set1_ps(ray.tmax));
+    let near = _mm256_max_ps(_mm256_max_ps(xn, _mm256_max_ps(yn, zn)), eps);
+    let far = _mm256_min_ps(_mm256_min_ps(xf, _mm256_min_ps(yf, zf)), tmax);
+    _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
 }
 
 /// [`slot_hits`] one child and one axis at a time.
@@ -188,9 +256,16 @@ mod tests {
             let ray = Ray::new(origin, dir, 0.5 * v.box_padding, rnd() * 3.0);
             let oct = bvh.new_traversal(dir).oct_inv4;
             for node in &bvh.nodes {
-                let (ours, theirs) = (node_hits(node, &ray, oct), node.intersect_ray(&ray, oct));
+                let ours = node_hits::<false>(node, &ray, oct);
+                let theirs = node.intersect_ray(&ray, oct);
                 assert_eq!(theirs & !ours, 0, "{node:?} {ray:?}");
                 assert_eq!(slot_hits(node, &ray), slot_hits_scalar(node, &ray));
+                #[cfg(target_arch = "x86_64")]
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2.
+                    let wide = unsafe { slot_hits_avx2(node, &ray) };
+                    assert_eq!(wide, slot_hits_scalar(node, &ray));
+                }
                 passed += theirs.count_ones() as usize;
             }
         }
