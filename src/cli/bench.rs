@@ -11,7 +11,8 @@ use std::process::ExitCode;
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
     /// Occlusion of segments through the solver's own BVH: prints one JSON line
-    /// {"segments", "occluded", "seconds", "per_second", "threads", "code_path"}; or, with --generate N
+    /// {"segments", "occluded", "seconds", "per_second", "threads", "code_path" (x86-64-v3 or
+    /// baseline)}; or, with --generate N
     /// --out FILE, writes N random segments between points on the scene's faces.
     Visibility(VisibilityArgs),
     /// Speed against accuracy: solve data sets over tolerance x order x domain mode, each solve in

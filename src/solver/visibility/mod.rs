@@ -77,7 +77,8 @@ pub struct Visibility {
     box_padding: f32,
     rays: AtomicU64,
     /// The CPU has x86-64-v3's features (AVX2, FMA, BMI, LZCNT, POPCNT): the segment tests run
-    /// compiled for them (see the module header).
+    /// compiled for them (see the module header). Invariant: true only when
+    /// `cpu_has_x86_64_v3()` is (the x86-64-v3 path runs AVX2 code).
     x86_64_v3: bool,
 }
 
@@ -190,20 +191,30 @@ impl Visibility {
             // SAFETY: `x86_64_v3` is set only when the CPU has every feature the function enables.
             return unsafe { self.visible_uncounted_v3(p, q, ignore) };
         }
-        self.visible_uncounted_any::<false>(p, q, ignore)
+        // SAFETY: with `V3` false the body runs baseline code only.
+        unsafe { self.visible_uncounted_any::<false>(p, q, ignore) }
     }
 
     /// [`Visibility::visible_uncounted`] compiled for x86-64-v3.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     fn visible_uncounted_v3(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
-        self.visible_uncounted_any::<true>(p, q, ignore)
+        // SAFETY: this function runs only where its features, AVX2 among them, are enabled.
+        unsafe { self.visible_uncounted_any::<true>(p, q, ignore) }
     }
 
     /// [`Visibility::visible_uncounted`] for whatever instruction set its caller is compiled for;
-    /// `V3`: the caller is compiled for x86-64-v3 (the node test takes AVX2).
+    /// `V3`: the node test takes AVX2.
+    ///
+    /// # Safety
+    /// With `V3` true, the CPU must have AVX2.
     #[inline(always)]
-    fn visible_uncounted_any<const V3: bool>(&self, p: DVec3, q: DVec3, ignore: [u32; 2]) -> bool {
+    unsafe fn visible_uncounted_any<const V3: bool>(
+        &self,
+        p: DVec3,
+        q: DVec3,
+        ignore: [u32; 2],
+    ) -> bool {
         let Some(bvh) = &self.bvh else { return true };
         let Some(seg) = self.segment(p, q) else {
             return true;
@@ -226,7 +237,8 @@ impl Visibility {
                 bvh,
                 node,
                 state,
-                node_hits::<V3>(node, ray, state.oct_inv4),
+                // SAFETY: `V3` true only where AVX2 is there (this function's contract).
+                unsafe { node_hits::<V3>(node, ray, state.oct_inv4) },
                 {
                     if seg.blocked_by(&self.tris[state.primitive_id as usize], ignore) {
                         visible = false;
@@ -245,27 +257,32 @@ impl Visibility {
     /// (`packet_verdicts_are_the_single_rays`), found in one traversal of the BVH: a node is
     /// read once for the whole packet, its children are first tested against the box of every
     /// segment still unblocked ([`bundle_slots`]), then against each such segment's ray
-    /// ([`slot_hits`]); a segment leaves the packet at its first blocker. Not counted.
+    /// ([`slot_hits_for`]); a segment leaves the packet at its first blocker. Not counted.
     pub(crate) fn visible_from(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if self.x86_64_v3 {
             // SAFETY: `x86_64_v3` is set only when the CPU has every feature the function enables.
             return unsafe { self.visible_from_v3(p, targets, ignore) };
         }
-        self.visible_from_any::<false>(p, targets, ignore)
+        // SAFETY: with `V3` false the body runs baseline code only.
+        unsafe { self.visible_from_any::<false>(p, targets, ignore) }
     }
 
     /// [`Visibility::visible_from`] compiled for x86-64-v3.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
     fn visible_from_v3(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
-        self.visible_from_any::<true>(p, targets, ignore)
+        // SAFETY: this function runs only where its features, AVX2 among them, are enabled.
+        unsafe { self.visible_from_any::<true>(p, targets, ignore) }
     }
 
     /// [`Visibility::visible_from`] for whatever instruction set its caller is compiled for;
-    /// `V3`: the caller is compiled for x86-64-v3 (the node test takes AVX2).
+    /// `V3`: the node test takes AVX2.
+    ///
+    /// # Safety
+    /// With `V3` true, the CPU must have AVX2.
     #[inline(always)]
-    fn visible_from_any<const V3: bool>(
+    unsafe fn visible_from_any<const V3: bool>(
         &self,
         p: DVec3,
         targets: &[DVec3],
@@ -321,7 +338,9 @@ impl Visibility {
             }
             let mut child_rays = [0u64; 8];
             for i in bits(mask) {
-                for slot in bits(u64::from(slot_hits_for::<V3>(node, &seg(i).ray) & shared)) {
+                // SAFETY: `V3` true only where AVX2 is there (this function's contract).
+                let hits = unsafe { slot_hits_for::<V3>(node, &seg(i).ray) };
+                for slot in bits(u64::from(hits & shared)) {
                     child_rays[slot as usize] |= 1 << i;
                 }
             }
@@ -612,17 +631,25 @@ mod tests {
             let mut corner = || c + (DVec3::new(rnd(), rnd(), rnd()) - 0.5) * 0.1;
             tris.push(([corner(), corner(), corner()], 12 + k % 7));
         }
-        let fast = Visibility::new(tris.clone(), 3.0);
-        if !fast.x86_64_v3 {
+        let mut v = Visibility::new(tris.clone(), 3.0);
+        if !v.x86_64_v3 {
             eprintln!("skipped: this CPU has no x86-64-v3, the baseline is the only code path");
             return;
         }
-        let mut baseline = Visibility::new(tris.clone(), 3.0);
-        baseline.x86_64_v3 = false;
-        assert_eq!(
-            (fast.code_path(), baseline.code_path()),
-            ("x86-64-v3", "baseline")
-        );
+        // Each path traverses from an empty shadow cache: a blocker one path cached would let
+        // the other skip its traversal.
+        let verdicts = |v: &Visibility, p: DVec3, targets: &[DVec3], ignore: [u32; 2]| {
+            LAST_BLOCKER.with(|c| c.set(u32::MAX));
+            let packet = v.visible_from(p, targets, ignore);
+            let singles: Vec<bool> = targets
+                .iter()
+                .map(|&q| {
+                    LAST_BLOCKER.with(|c| c.set(u32::MAX));
+                    v.visible(p, q, ignore)
+                })
+                .collect();
+            (packet, singles)
+        };
         let mut seen = [0usize; 2];
         for i in 0..2000 {
             let (p, face) = point_on_face(&tris[..24], &mut rnd);
@@ -630,11 +657,13 @@ mod tests {
             let targets: Vec<DVec3> = (0..1 + i % 64)
                 .map(|_| DVec3::new(rnd() * 2.0, rnd(), rnd() * 1.5))
                 .collect();
-            let packet = fast.visible_from(p, &targets, ignore);
-            assert_eq!(packet, baseline.visible_from(p, &targets, ignore), "{p}");
-            for &q in &targets {
-                let single = fast.visible(p, q, ignore);
-                assert_eq!(single, baseline.visible(p, q, ignore), "{p} -> {q}");
+            v.x86_64_v3 = true;
+            assert_eq!(v.code_path(), "x86-64-v3");
+            let fast = verdicts(&v, p, &targets, ignore);
+            v.x86_64_v3 = false;
+            assert_eq!(v.code_path(), "baseline");
+            assert_eq!(fast, verdicts(&v, p, &targets, ignore), "{p}");
+            for &single in &fast.1 {
                 seen[single as usize] += 1;
             }
         }

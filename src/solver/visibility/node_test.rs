@@ -14,12 +14,16 @@ use obvhs::{cwbvh::node::CwBvhNode, ray::Ray};
 /// Which children of a CWBVH node the ray's box test passes: obvhs' `intersect_ray_simd` (same
 /// arithmetic, same `hitmask` layout for `obvhs::traverse!`) with the child planes tested by
 /// [`slot_hits`]. Pinned by `node_hits_keeps_every_child_obvhs_keeps` and the brute-force twins.
-/// `V3`: test with [`slot_hits_avx2`] (only in code compiled for x86-64-v3).
+/// `V3`: test with [`slot_hits_avx2`].
+///
+/// # Safety
+/// With `V3` true, the CPU must have AVX2.
 #[inline(always)]
-pub(super) fn node_hits<const V3: bool>(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+pub(super) unsafe fn node_hits<const V3: bool>(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
     let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
     let mut hits = 0;
-    let mut m = slot_hits_for::<V3>(node, ray);
+    // SAFETY: the caller's contract.
+    let mut m = unsafe { slot_hits_for::<V3>(node, ray) };
     while m != 0 {
         let i = m.trailing_zeros() as u64 * 8;
         hits |= (((child_bits8 >> i) & 0xff) as u32) << ((bit_index8 >> i) & 0xff);
@@ -104,12 +108,15 @@ pub(super) fn slot_hits(node: &CwBvhNode, ray: &Ray) -> u32 {
     slot_hits_scalar(node, ray)
 }
 
-/// [`slot_hits_avx2`] when `V3` (the caller is compiled for x86-64-v3), else [`slot_hits`].
+/// [`slot_hits_avx2`] when `V3`, else [`slot_hits`].
+///
+/// # Safety
+/// With `V3` true, the CPU must have AVX2.
 #[inline(always)]
-pub(super) fn slot_hits_for<const V3: bool>(node: &CwBvhNode, ray: &Ray) -> u32 {
+pub(super) unsafe fn slot_hits_for<const V3: bool>(node: &CwBvhNode, ray: &Ray) -> u32 {
     #[cfg(target_arch = "x86_64")]
     if V3 {
-        // SAFETY: `V3` is set only by the x86-64-v3 code path, which runs only on a CPU with AVX2.
+        // SAFETY: the caller's contract.
         return unsafe { slot_hits_avx2(node, ray) };
     }
     slot_hits(node, ray)
@@ -239,7 +246,9 @@ mod tests {
     /// [`node_hits`] passes every child obvhs' own node test passes (the segment test's near
     /// limit, half the box padding, being under obvhs' 1e-4 in this room), on every node of a BVH
     /// for rays from random points in random directions, axis-aligned ones included; and
-    /// [`slot_hits`] (SSE2 on x86_64) gives the bits of its scalar twin.
+    /// [`slot_hits`] (SSE2 on x86_64) gives the bits of its scalar twin, as do
+    /// [`slot_hits_avx2`] and `node_hits::<true>` that of `node_hits::<false>` (on a CPU with
+    /// AVX2).
     #[test]
     fn node_hits_keeps_every_child_obvhs_keeps() {
         let v = furnished_room();
@@ -256,7 +265,8 @@ mod tests {
             let ray = Ray::new(origin, dir, 0.5 * v.box_padding, rnd() * 3.0);
             let oct = bvh.new_traversal(dir).oct_inv4;
             for node in &bvh.nodes {
-                let ours = node_hits::<false>(node, &ray, oct);
+                // SAFETY: with `V3` false, baseline code only.
+                let ours = unsafe { node_hits::<false>(node, &ray, oct) };
                 let theirs = node.intersect_ray(&ray, oct);
                 assert_eq!(theirs & !ours, 0, "{node:?} {ray:?}");
                 assert_eq!(slot_hits(node, &ray), slot_hits_scalar(node, &ray));
@@ -265,11 +275,21 @@ mod tests {
                     // SAFETY: the CPU has AVX2.
                     let wide = unsafe { slot_hits_avx2(node, &ray) };
                     assert_eq!(wide, slot_hits_scalar(node, &ray));
+                    // SAFETY: the CPU has AVX2.
+                    assert_eq!(unsafe { node_hits_avx2(node, &ray, oct) }, ours);
                 }
                 passed += theirs.count_ones() as usize;
             }
         }
         assert!(passed > 0);
+    }
+
+    /// `node_hits::<true>` compiled with AVX2, as in the x86-64-v3 code path.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn node_hits_avx2(node: &CwBvhNode, ray: &Ray, oct_inv4: u32) -> u32 {
+        // SAFETY: this function runs only where AVX2 is enabled.
+        unsafe { node_hits::<true>(node, ray, oct_inv4) }
     }
 
     /// [`bundle_slots`] keeps every non-empty child whose box (obvhs' `child_aabb`) overlaps the
