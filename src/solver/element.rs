@@ -52,7 +52,12 @@ pub(super) struct Emitter {
 }
 
 enum EmitterShape {
-    Polygon(Vec<DVec3>),
+    /// The element's own polygon, with the centre and radius of its corners' bounding sphere.
+    Polygon {
+        corners: Vec<DVec3>,
+        centre: DVec3,
+        radius: f64,
+    },
     Rings(Arc<FaceRings>),
 }
 
@@ -89,9 +94,18 @@ impl Emitter {
         let shape = match rings {
             Some(r) => EmitterShape::Rings(r.clone()),
             None => {
-                let mut polygon = Vec::with_capacity(4);
-                patch.corners(root.shape, &mut polygon);
-                EmitterShape::Polygon(polygon)
+                let mut corners = Vec::with_capacity(4);
+                patch.corners(root.shape, &mut corners);
+                let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
+                let radius = corners
+                    .iter()
+                    .map(|c| c.distance(centre))
+                    .fold(0.0, f64::max);
+                EmitterShape::Polygon {
+                    corners,
+                    centre,
+                    radius,
+                }
             }
         };
         Emitter {
@@ -109,9 +123,31 @@ impl Emitter {
             return 0.0;
         }
         match &self.shape {
-            EmitterShape::Polygon(p) => kernel::point_polygon_form_factor(x, n, p),
+            EmitterShape::Polygon { corners, .. } => {
+                kernel::point_polygon_form_factor(x, n, corners)
+            }
             EmitterShape::Rings(r) => kernel::point_rings_form_factor(x, n, r),
         }
+    }
+
+    /// Does the source's quadrature rule give the form factor at `x` (normal `n`) as closely as
+    /// [`kernel::rule_suffices_radii`] promises? When `x` is in front of the source's plane, at
+    /// least `radii` times the polygon's radius from its centre, and every corner is in front of
+    /// `x`'s tangent plane (the kernel is then smooth over the source; where the plane cuts it,
+    /// only the exact contour integral is right). Never for the face inside a partly covered
+    /// element: its rule is weighted by coverage, and the exact form factor is what corrects it.
+    pub(super) fn rule_suffices(&self, x: DVec3, n: DVec3, radii: f64) -> bool {
+        let EmitterShape::Polygon {
+            corners,
+            centre,
+            radius,
+        } = &self.shape
+        else {
+            return false;
+        };
+        self.normal.dot(x - self.origin) > 0.0
+            && x.distance_squared(*centre) >= (radii * radius).powi(2)
+            && corners.iter().all(|c| n.dot(*c - x) >= 0.0)
     }
 }
 

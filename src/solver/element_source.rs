@@ -2,8 +2,9 @@
 //! unshot radiosity it shoots), [`ElementShot`] (one shot's shooter: it makes an element's
 //! children, computed by push when they are not stored) and [`ElementSource`], an element as one
 //! receiver sees it: the quadrature of its radiosity over its rule's points, one shadow ray per
-//! point (one in all for a far link), scaled to the exact form factor, and the reciprocity
-//! check.
+//! point (one in all for a far link), scaled to the exact form factor (or, beyond the distance
+//! where the rule's own sum is within `1e-4` of it, `kernel::rule_suffices_radii`, to that sum),
+//! and the reciprocity check.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -323,13 +324,48 @@ impl<'s> ElementSource<'s> {
         (x - y).dot(self.root.normal) > 0.0 && (y - x).dot(n) > 0.0
     }
 
-    /// What the source delivers at `x` (normal `n`, exact form factor `f_exact > 0`) given the
-    /// verdicts `seen` of its emitting rule points, bit `i` for the `i`-th of them.
-    fn with_verdicts(&self, x: DVec3, n: DVec3, f_exact: f64, mut seen: u64) -> PointIrradiance {
-        let unoccluded = f_exact * self.strength;
+    /// The unoccluded form factor at `x` (normal `n`): the sum of the source's rule where it is
+    /// within its bound of the exact value (`Emitter::rule_suffices`: far enough, the source
+    /// wholly in front of `x`), else the exact contour integral. The rule's sum is what
+    /// [`ElementSource::with_verdicts`] sums, term by term, so the rescaling there is exactly 1.
+    fn form_factor(&self, x: DVec3, n: DVec3) -> f64 {
+        if self
+            .emitter
+            .rule_suffices(x, n, self.shot.rules.form_factor_radii)
+        {
+            self.rule_form_factor(x, n)
+        } else {
+            self.emitter.form_factor(x, n)
+        }
+    }
+
+    /// The rule's sum of the kernel from `x` over the emitting points (weighted as
+    /// [`ElementSource::with_verdicts`] weights them).
+    fn rule_form_factor(&self, x: DVec3, n: DVec3) -> f64 {
+        let mut sum = 0.0;
+        for (l, ql) in self.rule.iter().enumerate() {
+            if self.alpha[l] <= 0.0 {
+                continue;
+            }
+            let kxy = kernel::geometric_kernel(x, n, self.ys[l], self.root.normal)
+                * self.patch.area
+                * ql.weight
+                * self.alpha[l];
+            if kxy > 0.0 {
+                sum += kxy;
+            }
+        }
+        sum
+    }
+
+    /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from
+    /// [`ElementSource::form_factor`]) given the verdicts `seen` of its emitting rule points, bit
+    /// `i` for the `i`-th of them.
+    fn with_verdicts(&self, x: DVec3, n: DVec3, f: f64, mut seen: u64) -> PointIrradiance {
+        let unoccluded = f * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
-            form_factor: f_exact,
+            form_factor: f,
             ..PointIrradiance::default()
         };
         let (sp, alpha) = (&self.patch, &self.alpha);
@@ -374,9 +410,9 @@ impl<'s> ElementSource<'s> {
         }
         if fq > 0.0 && front_points > 0 {
             if self.partial {
-                out.coverage_err = (f_exact - fq).abs() * self.variation;
+                out.coverage_err = (f - fq).abs() * self.variation;
             }
-            let scale = f_exact / fq;
+            let scale = f / fq;
             for x in e.iter_mut() {
                 *x *= scale;
             }
@@ -389,7 +425,7 @@ impl<'s> ElementSource<'s> {
                 e = self
                     .src
                     .face_mean
-                    .map(|c| c * f_exact * visible_weight / self.alpha_weight);
+                    .map(|c| c * f * visible_weight / self.alpha_weight);
             }
         }
         out.e = e;
@@ -402,8 +438,8 @@ impl<'s> ElementSource<'s> {
     /// the budget any other visibility estimate of it would be allowed. `None` when `x` is behind
     /// the source or the source's plane.
     pub(super) fn far_irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<Rgb> {
-        let f_exact = self.emitter.form_factor(x, n);
-        if f_exact <= 0.0 {
+        let f = self.form_factor(x, n);
+        if f <= 0.0 {
             return None;
         }
         if self.alpha_weight <= 0.0 {
@@ -413,12 +449,11 @@ impl<'s> ElementSource<'s> {
         let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
         let visibility = self.shot.visibility;
         visibility.count_rays(1);
-        let seen = if visibility.visible_from(x, &[centre], ignore) & 1 == 1 {
-            u64::MAX
-        } else {
-            0
-        };
-        Some(self.with_verdicts(x, n, f_exact, seen).e)
+        if visibility.visible_from(x, &[centre], ignore) & 1 == 0 {
+            // What `with_verdicts` gives with no point seen.
+            return Some([0.0; 3]);
+        }
+        Some(self.with_verdicts(x, n, f, u64::MAX).e)
     }
 }
 
@@ -428,8 +463,8 @@ impl Source for ElementSource<'_> {
     }
 
     fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
-        let f_exact = self.emitter.form_factor(x, n);
-        if f_exact <= 0.0 {
+        let f = self.form_factor(x, n);
+        if f <= 0.0 {
             return None;
         }
         let visibility = self.shot.visibility;
@@ -446,11 +481,11 @@ impl Source for ElementSource<'_> {
         }
         let seen = visibility.visible_from(x, &targets[..rays], ignore);
         visibility.count_rays(rays as u64);
-        Some(self.with_verdicts(x, n, f_exact, seen))
+        Some(self.with_verdicts(x, n, f, seen))
     }
 
     fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb {
-        let f = self.emitter.form_factor(x, n);
+        let f = self.form_factor(x, n);
         self.src.face_mean.map(|c| f * c)
     }
 

@@ -195,6 +195,10 @@ impl ShotContext<'_> {
     /// push-pull.
     pub fn accept_far(&self, rcv: &mut Hierarchy, root: &ElementRoot, e: Rgb, direct: bool) {
         self.links.fetch_add(1, Ordering::Relaxed);
+        if e == [0.0; 3] {
+            // A blocked link: counted, nothing to add.
+            return;
+        }
         if rcv.reflectance.is_empty() {
             rcv.add_constant(e, root.rho, direct);
             return;

@@ -7,6 +7,7 @@
 
 use super::basis::{Basis, MAX_FUNCTIONS};
 use super::cover::CoverRules;
+use super::kernel;
 use super::quadrature::{rule, zones_of_influence, QuadPoint};
 use crate::domain::Shape;
 use glam::DVec2;
@@ -37,6 +38,9 @@ pub(super) struct Rules {
     pub(super) triangle: Vec<QuadPoint>,
     /// The parallelogram rule (`cover.rule`) with its zones of influence.
     pub(super) cover: CoverRules,
+    /// Beyond how many radii of a source element its rule gives the form factor
+    /// ([`kernel::rule_suffices_radii`]).
+    pub(super) form_factor_radii: f64,
 }
 
 impl Rules {
@@ -48,6 +52,7 @@ impl Rules {
                 zones: zones_of_influence(order + 1),
                 moment_rule: rule(Shape::Triangle, 3),
             },
+            form_factor_radii: kernel::rule_suffices_radii(order),
         }
     }
     pub(super) fn of(&self, shape: Shape) -> &[QuadPoint] {

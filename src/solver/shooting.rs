@@ -556,7 +556,8 @@ fn shoot(
                         });
                         if let Some(e) = e {
                             ctx.accept_far(h, &roots[ri], e, direct);
-                            took_light = true;
+                            // A blocked far link adds nothing: the receiver's power stands.
+                            took_light = e != [0.0; 3];
                         }
                     } else {
                         let mut record = ShotRecord::default();

@@ -31,8 +31,9 @@ pub(super) struct PointIrradiance {
     pub e: Rgb,
     /// Unoccluded irradiance at the point, channels weighted as the oracle's errors.
     pub unoccluded: f64,
-    /// The source's exact unoccluded form factor from the point (element sources; the
-    /// reciprocity check sums it), 0 for lights.
+    /// The source's unoccluded form factor from the point (element sources: exact, or the rule's
+    /// sum where that is within its bound, `ElementSource::form_factor`; the reciprocity check
+    /// sums it), 0 for lights.
     pub form_factor: f64,
     /// Whether any of the point's rays to the source was unblocked, and any blocked.
     pub any_visible: bool,
