@@ -203,6 +203,9 @@ pub(super) struct ElementSource<'s> {
     /// The amplitude of the non-constant part and the mean radiosity, weighted as the oracle's
     /// errors are.
     variation: f64,
+    /// The most the non-constant part adds at any point (each function's coefficient times its
+    /// [`Basis::max_abs`](super::basis::Basis::max_abs)), weighted likewise.
+    amplitude_bound: f64,
     strength: f64,
     /// Where a far link's one shadow ray ends, computed when a far link first needs it
     /// ([`ElementSource::far_irradiance_at`]).
@@ -275,6 +278,10 @@ impl<'s> ElementSource<'s> {
                 .sum::<f64>()
         };
         let variation: f64 = (1..ns).map(weighted_amplitude).sum();
+        // What the non-constant part adds at most at any point of the element.
+        let amplitude_bound: f64 = (1..ns)
+            .map(|bfn| weighted_amplitude(bfn) * basis.max_abs(bfn))
+            .sum();
         // The source's mean radiosity, weighted as the oracle's errors are.
         let strength: f64 = (0..3).map(|ch| weight[ch] * source_mean[ch].abs()).sum();
         ElementSource {
@@ -291,6 +298,7 @@ impl<'s> ElementSource<'s> {
             radiosity,
             partial,
             variation,
+            amplitude_bound,
             strength,
             centre_stand_in: OnceCell::new(),
             corner_stand_ins: Default::default(),
@@ -312,11 +320,15 @@ impl<'s> ElementSource<'s> {
     }
 
     /// A bound on the power the element may send (channels summed and weighted as the oracle's
-    /// errors): its strength plus a margin for its non-constant part (no basis function of M1-M3
-    /// exceeds 6 in magnitude on its element: `far_field.rs` tests it), times its area (an extended element's domain,
-    /// at least the face inside it).
+    /// errors): at any point its radiosity's magnitude is at most its mean's plus
+    /// `amplitude_bound`; on a partly covered element the points' values are shifted to the face's
+    /// mean by at most `amplitude_bound` again, so twice it. Times the face's area inside the
+    /// element, which is at most the element's and the face's. Pinned by
+    /// `power_bound_holds_over_the_face` (`far_field.rs`).
     pub(super) fn power_bound(&self) -> f64 {
-        (self.strength + 6.0 * self.variation) * self.patch.area
+        let margin = if self.partial { 2.0 } else { 1.0 };
+        (self.strength + margin * self.amplitude_bound)
+            * self.patch.area.min(self.root.face_area_m2)
     }
 
     /// Do receiver point `x` (normal `n`) and the source's point `y` exchange light?
