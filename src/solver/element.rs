@@ -189,3 +189,58 @@ impl Patch {
         self.u.length().min(self.v.length())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::{FaceId, Frame, Side};
+
+    /// A native unit square in the plane z = 0, facing +z.
+    fn unit_square() -> ElementRoot {
+        ElementRoot {
+            face: FaceId(0),
+            side: Side::Front,
+            shape: Shape::Parallelogram,
+            frame: Frame {
+                origin: DVec3::ZERO,
+                u: DVec3::X,
+                v: DVec3::Y,
+            },
+            normal: DVec3::Z,
+            area_m2: 1.0,
+            face_area_m2: 1.0,
+            mask: None,
+            material: 0,
+            rho: [0.5; 3],
+            exitance: [0.0; 3],
+            reflectance: None,
+        }
+    }
+
+    /// The rule stands in for the contour integral only far enough (in radii of the corners'
+    /// sphere, `sqrt(1/2)` here), in front of the source, with the whole source in front of the
+    /// receiving point's tangent plane; never for a face given as rings.
+    #[test]
+    fn the_rule_stands_in_only_far_in_front_and_never_for_rings() {
+        let root = unit_square();
+        let patch = Patch::new(&root, &ChildMap::IDENTITY);
+        let emitter = Emitter::new(&root, &patch, None);
+        let (above, down) = (|z: f64| DVec3::new(0.5, 0.5, z), -DVec3::Z);
+        let radius = 0.5f64.sqrt();
+        assert!(emitter.rule_suffices(above(4.0 * radius + 1e-9), down, 4.0));
+        assert!(!emitter.rule_suffices(above(4.0 * radius - 1e-9), down, 4.0));
+        // Behind the source's plane.
+        assert!(!emitter.rule_suffices(above(-10.0), DVec3::Z, 4.0));
+        // Tilted so that the corners at x = 0 fall behind the point's tangent plane.
+        let tilted = DVec3::new(1.0, 0.0, -0.01).normalize();
+        assert!(!emitter.rule_suffices(above(10.0), tilted, 4.0));
+        // The same square as a ring: the exact form factor at any distance.
+        let corners = [DVec2::ZERO, DVec2::X, DVec2::ONE, DVec2::Y];
+        let rings = world_rings(&root, &[corners.to_vec()]);
+        let ringed = Emitter::new(&root, &patch, Some(&rings));
+        assert!(!ringed.rule_suffices(above(1e3), down, 4.0));
+        // Both give the same exact form factor.
+        let x = above(3.0);
+        assert!((ringed.form_factor(x, down) - emitter.form_factor(x, down)).abs() < 1e-15);
+    }
+}

@@ -3,7 +3,8 @@
 //! children, computed by push when they are not stored) and [`ElementSource`], an element as one
 //! receiver sees it: the quadrature of its radiosity over its rule's points, one shadow ray per
 //! point (one in all for a far link), scaled to the exact form factor (or, beyond the distance
-//! where the rule's own sum is within `1e-4` of it, `kernel::rule_suffices_radii`, to that sum),
+//! where the rule's own sum is within `1e-4` of the head-on value, `kernel::rule_suffices_radii`,
+//! to that sum),
 //! and the reciprocity check.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
@@ -321,9 +322,11 @@ impl<'s> ElementSource<'s> {
 
     /// A bound on the power the element may send (channels summed and weighted as the oracle's
     /// errors): at any point its radiosity's magnitude is at most its mean's plus
-    /// `amplitude_bound`; on a partly covered element the points' values are shifted to the face's
-    /// mean by at most `amplitude_bound` again, so twice it. Times the face's area inside the
-    /// element, which is at most the element's and the face's. Pinned by
+    /// `amplitude_bound`. On a partly covered element each point's value is the polynomial's there
+    /// minus the rule's mean plus the face's mean (`new`); the first two are each within
+    /// `amplitude_bound` of coefficient 0, so the value is within twice it of the face's mean,
+    /// whatever that mean is (a stored mean over the leaves too). Times the face's area inside the
+    /// element, which is at most the element's and the face's. Pinned on native elements by
     /// `power_bound_holds_over_the_face` (`far_field.rs`).
     pub(super) fn power_bound(&self) -> f64 {
         let margin = if self.partial { 2.0 } else { 1.0 };
@@ -533,8 +536,8 @@ impl Source for ElementSource<'_> {
             && disagrees(visibility_point(root, map, ss))
     }
 
-    /// Reciprocity: `A_r F_rs = A_s F_sr`. The receiver's rule points each take the exact form
-    /// factor of the source (`seen_by_receiver`, summed with the rule's weights); the source's
+    /// Reciprocity: `A_r F_rs = A_s F_sr`. The receiver's rule points each take the form factor
+    /// of the source (`ElementSource::form_factor`; `seen_by_receiver`, summed with the rule's weights); the source's
     /// rule points each take the exact form factor of the receiver (of the face inside it on an
     /// extended root). When the receiver's estimate is under `MISSED_EXCHANGE_RATIO` of the
     /// source's, the receiver's points missed the source: the unseen exchange

@@ -58,7 +58,7 @@ pub(super) fn evaluate(
     let mut partial = received.any_visible && received.any_blocked;
     if !partial && received.any_visible && err * area <= threshold {
         // The quadrature points are interior: the irradiance near the element's border (the
-        // falloff towards a room's corners) is not sampled. Compare the exact unoccluded
+        // falloff towards a room's corners) is not sampled. Compare the unoccluded
         // irradiance of the source's mean at points near the corners with the projection.
         for (j, &st) in corner_probe_points(root.shape).iter().enumerate() {
             // Off the face, the stand-in receives for the point (see `receiving_point`).
