@@ -354,18 +354,26 @@ impl<'s> ElementSource<'s> {
         }
     }
 
-    /// The rule's sum of the kernel from `x` over the emitting points (weighted as
-    /// [`ElementSource::with_verdicts`] weights them).
+    /// Rule point `l`'s term of the form factor at `x` (normal `n`): the kernel times the
+    /// element's area, the point's weight `w` and its emission weight. One expression for
+    /// [`ElementSource::rule_form_factor`] and [`ElementSource::with_verdicts`], so their sums
+    /// agree bit for bit.
+    fn point_term(&self, l: usize, w: f64, x: DVec3, n: DVec3) -> f64 {
+        kernel::geometric_kernel(x, n, self.ys[l], self.root.normal)
+            * self.patch.area
+            * w
+            * self.alpha[l]
+    }
+
+    /// The rule's sum of the kernel from `x` over the emitting points (the positive terms
+    /// [`ElementSource::with_verdicts`] sums).
     fn rule_form_factor(&self, x: DVec3, n: DVec3) -> f64 {
         let mut sum = 0.0;
         for (l, ql) in self.rule.iter().enumerate() {
             if self.alpha[l] <= 0.0 {
                 continue;
             }
-            let kxy = kernel::geometric_kernel(x, n, self.ys[l], self.root.normal)
-                * self.patch.area
-                * ql.weight
-                * self.alpha[l];
+            let kxy = self.point_term(l, ql.weight, x, n);
             if kxy > 0.0 {
                 sum += kxy;
             }
@@ -383,7 +391,7 @@ impl<'s> ElementSource<'s> {
             form_factor: f,
             ..PointIrradiance::default()
         };
-        let (sp, alpha) = (&self.patch, &self.alpha);
+        let alpha = &self.alpha;
         let mut fq = 0.0;
         let mut e = [0.0; 3];
         let mut visible_weight = 0.0;
@@ -393,10 +401,7 @@ impl<'s> ElementSource<'s> {
             if alpha[l] <= 0.0 {
                 continue;
             }
-            let kxy = kernel::geometric_kernel(x, n, self.ys[l], self.root.normal)
-                * sp.area
-                * ql.weight
-                * alpha[l];
+            let kxy = self.point_term(l, ql.weight, x, n);
             let vis = seen & 1 == 1;
             seen >>= 1;
             if vis {
