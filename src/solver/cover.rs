@@ -1,7 +1,7 @@
 //! How an extended root's elements cover its face (paper 3.3): per element, its status (empty,
 //! full, partial), the covered fraction alpha of each quadrature point's zone of influence (the
-//! emission weights), the points that stand in for its quadrature points in visibility queries
-//! (their closest points on the face: `V'(Q,P) = V(Q,P')`), and its face moments
+//! emission weights), the points that stand in for its quadrature points and its check points in
+//! visibility queries (their closest points on the face: `V'(Q,P) = V(Q,P')`), and its face moments
 //! `m_i = (1/|e|) * integral over (face inside e) of phi_i`, which turn coefficients into integrals
 //! over the face: `integral over (face inside e) of f = |e| * sum_i f_i m_i`.
 //!
@@ -22,6 +22,8 @@ use glam::DVec2;
 
 /// Most points of a quadrature rule the solver uses (4 per axis, M3).
 pub const MAX_RULE_POINTS: usize = 16;
+/// A parallelogram's check points (`rules::corner_probe_points`: near the corners, the centre).
+pub const CHECK_POINTS: usize = 5;
 
 /// The face inside one element of an extended root.
 #[derive(Debug, Clone, Copy)]
@@ -33,6 +35,9 @@ pub struct NodeCover {
     /// when on the face, else its closest point on the face; left as the point itself in an empty
     /// virtual source element, which never casts a ray).
     pub visibility_point: [DVec2; MAX_RULE_POINTS],
+    /// The same for the element's check points (`CoverRules::check_points`): computed once
+    /// with the node, not at every transfer to it (a closest point is O(n) in the face's edges).
+    pub check_point: [DVec2; CHECK_POINTS],
     /// `(1/|e|) * integral over (face inside e) of phi_i`, per basis function.
     pub moments: [f64; MAX_FUNCTIONS],
 }
@@ -46,6 +51,8 @@ pub struct CoverRules {
     /// Exact for total degree 4 (the product of two M3 functions' degrees per axis is reached by
     /// `phi_i` alone: degree 2 per axis, 4 in all).
     pub moment_rule: Vec<QuadPoint>,
+    /// The element's check points, in reference coordinates.
+    pub check_points: [DVec2; CHECK_POINTS],
 }
 
 /// The box of root coordinates an element of a parallelogram root covers.
@@ -87,6 +94,7 @@ impl NodeCover {
             status: mask.coverage(b).status,
             alpha: [0.0; MAX_RULE_POINTS],
             visibility_point: [DVec2::ZERO; MAX_RULE_POINTS],
+            check_point: rules.check_points.map(|st| map.apply(st)),
             moments: [0.0; MAX_FUNCTIONS],
         };
         for (k, q) in rules.rule.iter().enumerate() {
@@ -112,7 +120,8 @@ impl NodeCover {
         }
         // An empty element never emits: as a virtual source it needs no stand-ins.
         if stored || cover.status != ElementStatus::Empty {
-            for p in cover.visibility_point[..n].iter_mut() {
+            let points = cover.visibility_point[..n].iter_mut();
+            for p in points.chain(cover.check_point.iter_mut()) {
                 *p = mask.closest_point(*p);
             }
         }
@@ -286,6 +295,7 @@ mod tests {
             rule: rule(Shape::Parallelogram, order + 1),
             zones: zones_of_influence(order + 1),
             moment_rule: rule(Shape::Triangle, 3),
+            check_points: crate::solver::rules::parallelogram_check_points(),
         }
     }
 
@@ -383,6 +393,43 @@ mod tests {
         assert!((sum - parent.moments[0]).abs() < 1e-13);
         assert!((parent.moments[0] - (1.0 - 0.09)).abs() < 1e-13);
     }
+    /// A stored node's check points stand in as `mask.closest_point` would at every transfer:
+    /// themselves on the face (full nodes among them), their closest face point off it; a
+    /// virtual source element that is empty keeps them as they are (it never receives).
+    #[test]
+    fn check_points_stand_in_as_their_closest_face_points() {
+        let mask = holed(0.5);
+        let basis = Basis::new(Shape::Parallelogram, 2);
+        let r = rules(2);
+        // The root and its descendants to depth 3.
+        let mut level = vec![ChildMap::IDENTITY];
+        let mut maps = level.clone();
+        for _ in 0..3 {
+            level = level
+                .iter()
+                .flat_map(|m| {
+                    crate::solver::basis::child_maps(Shape::Parallelogram).map(|c| m.then(&c))
+                })
+                .collect();
+            maps.extend_from_slice(&level);
+        }
+        let mut off_face = 0;
+        for m in &maps {
+            let c = NodeCover::new(&mask, m, &r, &basis, true);
+            for (j, &st) in r.check_points.iter().enumerate() {
+                let p = m.apply(st);
+                assert_eq!(c.check_point[j], mask.closest_point(p), "{m:?} point {j}");
+                off_face += usize::from(!mask.contains(p));
+            }
+            let virtual_source = NodeCover::new(&mask, m, &r, &basis, false);
+            if virtual_source.status == ElementStatus::Empty {
+                let own = r.check_points.map(|st| m.apply(st));
+                assert_eq!(virtual_source.check_point, own);
+            }
+        }
+        assert!(off_face > 0, "some check points lie in the hole");
+    }
+
     #[test]
     fn face_means_integrate_the_leaves_over_the_face() {
         // A holed square split twice (the root, then its first child), each leaf holding its own

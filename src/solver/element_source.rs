@@ -20,7 +20,7 @@ use super::kernel;
 use super::quadrature::{self, QuadPoint};
 use super::refine::Shot;
 use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
-use super::source::{PointIrradiance, ReceiverNode, Source, SourceSplit};
+use super::source::{PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
 use crate::domain::{ElementRoot, ElementStatus};
@@ -482,10 +482,19 @@ impl Source for ElementSource<'_> {
         [self.root.face.0, receiver_face]
     }
 
-    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
+    fn irradiance_at(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        ignore: [u32; 2],
+        rays: Rays,
+    ) -> Option<PointIrradiance> {
         let f = self.form_factor(x, n);
         if f <= 0.0 {
             return None;
+        }
+        if rays == Rays::AllPass {
+            return Some(self.with_verdicts(x, n, f, u64::MAX));
         }
         let visibility = self.shot.visibility;
         // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the

@@ -108,9 +108,11 @@ pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot, x: DVec
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::solver::basis::{Basis, MAX_FUNCTIONS};
+    use crate::solver::source::Rays;
+    use crate::solver::visibility::Visibility;
 
     /// `ElementSource::power_bound` against the radiosity's largest magnitude on a fine grid of
     /// the element times its area, for random coefficients at every order on both native shapes:
@@ -244,17 +246,18 @@ mod tests {
         }
     }
 
-    /// A far link traces one shadow ray, to the source's centre: when it passes, the link takes
-    /// what the source's whole rule delivers with every point visible (the same numbers); when
-    /// it is blocked, nothing.
-    #[test]
-    fn a_far_link_takes_the_whole_source_on_one_ray() {
+    /// A 1 m square source facing up (face 0) and a receiver 20 m above it facing down (face 1),
+    /// in a scene open (`blocked` false) or with a 0.2 m square at half height over the source's
+    /// centre, which blocks the centre ray and not the rule's outer points: `f` gets the source
+    /// as the receiver sees it (M2, direct), the receiver's root and the visibility.
+    pub(in crate::solver) fn square_under_square<R>(
+        blocked: bool,
+        f: impl FnOnce(&ElementSource, &ElementRoot, &Visibility) -> R,
+    ) -> R {
         use crate::solver::element_source::{ElementShot, SourceElement};
         use crate::solver::hierarchy::Hierarchy;
         use crate::solver::refine::Shot;
         use crate::solver::rules::{Bases, Rules};
-        use crate::solver::visibility::Visibility;
-        // A 1 m square source facing up, a receiver 20 m above it facing down.
         let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
         source.exitance = [2.0, 1.0, 0.5];
         let mut receiver = parallelogram_root(DVec3::new(0.0, 0.0, 20.0), DVec3::Y, DVec3::X);
@@ -266,8 +269,6 @@ mod tests {
         coeffs[0] = roots[0].exitance;
         let n = bases.of(Shape::Parallelogram).len();
         let element = SourceElement::root(&roots[0], coeffs, n, None, None);
-        // A small square at half height over the source's centre: it blocks the centre ray
-        // and not the rule's outer points.
         let c = DVec3::new(0.5, 0.5, 10.0);
         let (a, b, d, e) = (
             c + DVec3::new(-0.1, -0.1, 0.0),
@@ -275,35 +276,48 @@ mod tests {
             c + DVec3::new(0.1, 0.1, 0.0),
             c + DVec3::new(-0.1, 0.1, 0.0),
         );
-        let open = Visibility::new(Vec::new(), 30.0);
-        let blocked = Visibility::new([([a, b, d], 7), ([a, d, e], 7)], 30.0);
-        let at = |visibility: &Visibility| {
-            let shot = ElementShot {
-                roots: &roots,
-                bases: &bases,
-                rules: &rules,
-                visibility,
-                source_root: 0,
-                source_hierarchy: &hierarchy,
-                direct: true,
-                source_face_means: None,
-                min_edge: 1e-3,
-            };
-            let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
-            let ignore = source.ignored_faces(1);
-            let x = DVec3::new(0.5, 0.5, 20.0);
-            let whole = source
-                .irradiance_at(x, roots[1].normal, ignore)
-                .map(|p| p.e);
-            let before = visibility.rays_traced();
-            let far = far_irradiance(&source, &roots[1], link_point(&roots[1]));
-            (whole, far, visibility.rays_traced() - before)
+        let visibility = if blocked {
+            Visibility::new([([a, b, d], 7), ([a, d, e], 7)], 30.0)
+        } else {
+            Visibility::new(Vec::new(), 30.0)
         };
-        let (whole, far, rays) = at(&open);
+        let shot = ElementShot {
+            roots: &roots,
+            bases: &bases,
+            rules: &rules,
+            visibility: &visibility,
+            source_root: 0,
+            source_hierarchy: &hierarchy,
+            direct: true,
+            source_face_means: None,
+            min_edge: 1e-3,
+        };
+        let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+        f(&source, &roots[1], &visibility)
+    }
+
+    /// A far link traces one shadow ray, to the source's centre: when it passes, the link takes
+    /// what the source's whole rule delivers with every point visible (the same numbers); when
+    /// it is blocked, nothing.
+    #[test]
+    fn a_far_link_takes_the_whole_source_on_one_ray() {
+        let at = |blocked: bool| {
+            square_under_square(blocked, |source, receiver, visibility| {
+                let ignore = source.ignored_faces(1);
+                let x = DVec3::new(0.5, 0.5, 20.0);
+                let whole = source
+                    .irradiance_at(x, receiver.normal, ignore, Rays::Trace)
+                    .map(|p| p.e);
+                let before = visibility.rays_traced();
+                let far = far_irradiance(source, receiver, link_point(receiver));
+                (whole, far, visibility.rays_traced() - before)
+            })
+        };
+        let (whole, far, rays) = at(false);
         assert_eq!(rays, 1);
         assert_eq!(far, whole);
         assert!(far.is_some_and(|e| e[0] > 0.0), "{far:?}");
-        let (whole, far, rays) = at(&blocked);
+        let (whole, far, rays) = at(true);
         assert_eq!(rays, 1);
         assert_eq!(far, Some([0.0; 3]));
         assert!(

@@ -41,7 +41,11 @@ impl ShotContext<'_> {
     ///
     /// A link given back is sent again as the part its path leads to from the record's start
     /// (`Parts`, by the shot's own `children`: the part the recursion had), and taken back by the
-    /// coefficients it was gathered with. The record's largest size goes to `link_records`.
+    /// coefficients it was gathered with. A link all of whose traced rays passed (from the node's
+    /// rule and check points to the part's) is taken as seen whole from the node's children
+    /// ([`Rays::AllPass`](super::source::Rays)): they lie inside the node, whose rays sampled
+    /// the space between them and the part; their own links trace again when re-sent further.
+    /// The record's largest size goes to `link_records`.
     pub(super) fn refine_by_node_sums<S: Shot>(
         &self,
         shot: &S,
@@ -115,9 +119,9 @@ impl ShotContext<'_> {
             let first = self.first_child(rcv, b, rroot);
             debug_assert!(first > b, "children come after their parent");
             for c in 0..4 {
-                for &path in &resend.sources {
-                    let part = parts.get(path);
-                    self.transfer_at(shot, part, path, rcv_index, rcv, first + c, record);
+                for &link in &resend.sources {
+                    let part = parts.get(link.path);
+                    self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);
                 }
             }
         }

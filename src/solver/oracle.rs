@@ -16,7 +16,7 @@ use super::element::visibility_point;
 use super::quadrature;
 use super::refine::ShotContext;
 use super::rules::{corner_probe_points, CORNER_INSET};
-use super::source::{ReceiverNode, Source};
+use super::source::{Rays, ReceiverNode, Source};
 use super::transfer::Received;
 use super::{Quantity, MAX_DEPTH};
 use crate::scene::Rgb;
@@ -36,13 +36,15 @@ pub(super) enum Verdict {
 }
 
 /// Evaluates the interaction of `source` with `receiver`, which received `received`; `weight`:
-/// the oracle's channel weights at the receiver.
+/// the oracle's channel weights at the receiver; `rays`: how the transfer decided its shadow
+/// rays (taken as all passing, no ray checks the verdict either).
 pub(super) fn evaluate(
     ctx: &ShotContext,
     source: &impl Source,
     receiver: &ReceiverNode,
     received: &Received,
     weight: Rgb,
+    rays: Rays,
 ) -> Verdict {
     let root = receiver.root;
     let area = receiver.patch.area;
@@ -60,14 +62,18 @@ pub(super) fn evaluate(
         // The quadrature points are interior: the irradiance near the element's border (the
         // falloff towards a room's corners) is not sampled. Compare the unoccluded
         // irradiance of the source's mean at points near the corners with the projection.
-        for (j, &st) in corner_probe_points(root.shape).iter().enumerate() {
+        for j in 0..corner_probe_points(root.shape).len() {
             // Off the face, the stand-in receives for the point (see `receiving_point`).
-            let x = visibility_point(root, &receiver.map, st);
+            let x = receiver.check_point(j);
             let e = source.unoccluded_irradiance(x, root.normal);
             err = err.max(weighted_deviation(e, dh, &psi[nk + j], nr, weight));
         }
     }
-    if !partial && err * area <= threshold && received.unoccluded_max * area > threshold {
+    if rays == Rays::Trace
+        && !partial
+        && err * area <= threshold
+        && received.unoccluded_max * area > threshold
+    {
         // The quadrature rays agree, but they sample the interior only, and sparsely: a shadow
         // boundary near an element's border (a wall standing on a slab, an eave over a wall)
         // slips between them, and so does a strip of a large source seen through a gap.
@@ -138,8 +144,8 @@ fn verdict_rays_disagree(
     let root = receiver.root;
     let n = root.normal;
     let ignore = source.ignored_faces(root.face.0);
-    for &rs in corner_probe_points(root.shape) {
-        let x = visibility_point(root, &receiver.map, rs);
+    for j in 0..corner_probe_points(root.shape).len() {
+        let x = receiver.check_point(j);
         let mut disagrees = |y| ctx.visibility.visible(x, y, ignore) != quadrature_visible;
         if source.corner_rays(x, n, &mut disagrees) {
             return true;

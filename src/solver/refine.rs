@@ -14,7 +14,7 @@ use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
 use super::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord, SourcePath};
-use super::source::{ReceiverNode, Source};
+use super::source::{Rays, ReceiverNode, Source};
 use super::transfer::{self, Received};
 use super::visibility::Visibility;
 use super::Quantity;
@@ -99,16 +99,22 @@ impl ShotContext<'_> {
             // Recorded links name their sources by the splits that lead to them from `part`.
             record.start_from(part);
         }
-        self.transfer_at(shot, part, SourcePath::ROOT, rcv_index, rcv, b, record);
+        let link = Link {
+            path: SourcePath::ROOT,
+            rays: Rays::Trace,
+        };
+        self.transfer_at(shot, part, link, rcv_index, rcv, b, record);
     }
 
-    /// [`ShotContext::transfer`] of the part at `path` under the part the record started from.
+    /// [`ShotContext::transfer`] of the part at `link.path` under the part the record started
+    /// from, its shadow rays decided as `link.rays` says (and so those of every link the
+    /// recursion makes of it: their parts and nodes lie inside this one's).
     #[allow(clippy::too_many_arguments)]
     pub fn transfer_at<S: Shot>(
         &self,
         shot: &S,
         part: &S::Part,
-        path: SourcePath,
+        link: Link,
         rcv_index: usize,
         rcv: &mut Hierarchy,
         b: usize,
@@ -123,22 +129,26 @@ impl ShotContext<'_> {
             return;
         };
         let receiver = ReceiverNode::new(rroot, rcv, b);
-        let received = self.receive(&source, &receiver);
-        match oracle::evaluate(self, &source, &receiver, &received, weight) {
-            Verdict::Accept => self.accept(path, rroot, rcv, b, &received, record),
+        let received = self.receive(&source, &receiver, link.rays);
+        match oracle::evaluate(self, &source, &receiver, &received, weight, link.rays) {
+            Verdict::Accept => self.accept(link.path, rroot, rcv, b, &received, record),
             Verdict::Capped => {
                 self.capped.fetch_add(1, Ordering::Relaxed);
-                self.accept(path, rroot, rcv, b, &received, record);
+                self.accept(link.path, rroot, rcv, b, &received, record);
             }
             Verdict::SplitSource => {
                 for (c, child) in shot.children(part).iter().enumerate() {
-                    self.transfer_at(shot, child, path.child(c), rcv_index, rcv, b, record);
+                    let sub = Link {
+                        path: link.path.child(c),
+                        rays: link.rays,
+                    };
+                    self.transfer_at(shot, child, sub, rcv_index, rcv, b, record);
                 }
             }
             Verdict::SplitReceiver => {
                 let first = self.first_child(rcv, b, rroot);
                 for c in 0..4 {
-                    self.transfer_at(shot, part, path, rcv_index, rcv, first + c, record);
+                    self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);
                 }
             }
         }
@@ -146,12 +156,12 @@ impl ShotContext<'_> {
 
     /// The source's irradiance at the receiver's rule points, and at its check points when the
     /// node sums are judged.
-    fn receive(&self, source: &impl Source, receiver: &ReceiverNode) -> Received {
+    fn receive(&self, source: &impl Source, receiver: &ReceiverNode, rays: Rays) -> Received {
         let shape = receiver.root.shape;
         let check_points = if self.node_sums {
-            corner_probe_points(shape)
+            corner_probe_points(shape).len()
         } else {
-            &[]
+            0
         };
         let received = transfer::receive(
             source,
@@ -160,6 +170,7 @@ impl ShotContext<'_> {
             self.psi.of(shape),
             self.bases.of(shape).len(),
             check_points,
+            rays,
         );
         if received.touching > 0 {
             self.touching
@@ -185,7 +196,7 @@ impl ShotContext<'_> {
         if self.node_sums {
             let e = &received.e[..received.points];
             let deviation = self.node_sum_deviation(rroot)(e, &received.dh);
-            record.add(b, e, &received.dh, nr, deviation, path);
+            record.add(b, e, &received.dh, nr, deviation, path, received.all_pass);
         }
     }
 
@@ -217,6 +228,14 @@ impl ShotContext<'_> {
             rcv.nodes[b].first_child as usize
         }
     }
+}
+
+/// A link of a shot's recursion: where its part lies under the part the recursion started from,
+/// and how its shadow rays are decided.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Link {
+    pub path: SourcePath,
+    pub rays: Rays,
 }
 
 /// Adds an accepted link's coefficients to node `b`'s gathered irradiance.

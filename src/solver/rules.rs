@@ -6,7 +6,7 @@
 //! then one per [`corner_probe_points`]`(shape)`, in that order (the oracle indexes it so).
 
 use super::basis::{Basis, MAX_FUNCTIONS};
-use super::cover::CoverRules;
+use super::cover::{CoverRules, CHECK_POINTS};
 use super::kernel;
 use super::quadrature::{rule, zones_of_influence, QuadPoint};
 use crate::domain::Shape;
@@ -51,6 +51,7 @@ impl Rules {
                 rule: rule(Shape::Parallelogram, order + 1),
                 zones: zones_of_influence(order + 1),
                 moment_rule: rule(Shape::Triangle, 3),
+                check_points: parallelogram_check_points(),
             },
             form_factor_radii: kernel::rule_suffices_radii(order),
         }
@@ -96,6 +97,13 @@ impl BasisAtControlPoints {
             Shape::Parallelogram => &self.parallelogram,
         }
     }
+}
+
+/// A parallelogram's [`corner_probe_points`], as an array.
+pub(super) fn parallelogram_check_points() -> [DVec2; CHECK_POINTS] {
+    let mut points = [DVec2::ZERO; CHECK_POINTS];
+    points.copy_from_slice(corner_probe_points(Shape::Parallelogram));
+    points
 }
 
 /// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.

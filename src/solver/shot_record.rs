@@ -14,7 +14,8 @@
 //! had against its coefficients; `link_bytes` is the allocated size of the per-link entries held.
 
 use super::basis::MAX_FUNCTIONS;
-use super::refine::Shot;
+use super::refine::{Link, Shot};
+use super::source::Rays;
 use crate::scene::Rgb;
 use std::collections::BTreeMap;
 use std::mem::size_of;
@@ -65,6 +66,8 @@ const _: () = assert!(super::MAX_DEPTH as u32 <= SourcePath::MAX_SPLITS);
 #[derive(Debug, Clone, Copy)]
 struct LinkEntry {
     source: SourcePath,
+    /// Every ray of the link passed (its points' rays, or those of the link it was re-sent from).
+    all_pass: bool,
     /// The oracle's deviation of the link's point values from its coefficients.
     deviation: f64,
 }
@@ -169,7 +172,9 @@ impl<P> ShotRecord<P> {
     }
 
     /// Records a link gathered at node `b`: its values `e` at the node's points, its coefficients
-    /// `dh` (the first `nr` kept with the link), `deviation` of `e` from `dh`, and its source.
+    /// `dh` (the first `nr` kept with the link), `deviation` of `e` from `dh`, its source, and
+    /// whether all its rays passed.
+    #[allow(clippy::too_many_arguments)]
     pub fn add(
         &mut self,
         b: usize,
@@ -178,6 +183,7 @@ impl<P> ShotRecord<P> {
         nr: usize,
         deviation: f64,
         source: SourcePath,
+        all_pass: bool,
     ) {
         let sum = self.nodes.entry(b).or_insert_with(|| NodeSum {
             e: vec![[0.0; 3]; e.len()],
@@ -189,7 +195,11 @@ impl<P> ShotRecord<P> {
         let before = sum.link_bytes();
         add_rgb(&mut sum.e, e);
         add_rgb(&mut sum.dh, dh);
-        sum.links.push(LinkEntry { source, deviation });
+        sum.links.push(LinkEntry {
+            source,
+            all_pass,
+            deviation,
+        });
         sum.link_dh.extend_from_slice(&dh[..nr]);
         let after = sum.link_bytes();
         self.held.bytes = self.held.bytes + after - before;
@@ -211,9 +221,11 @@ impl<P> ShotRecord<P> {
     }
 }
 
-/// The links a node gives back: their sources and coefficients, in the order they came.
+/// The links a node gives back: their sources, how their rays are decided where they go (a
+/// link all of whose rays passed from the node is taken as seen whole from its children), and
+/// their coefficients, in the order they came.
 pub(super) struct Resend {
-    pub sources: Vec<SourcePath>,
+    pub sources: Vec<Link>,
     /// `nr` per link.
     dh: Vec<Rgb>,
     nr: usize,
@@ -254,7 +266,15 @@ impl NodeSum {
         };
         for (l, dh) in self.links.iter().zip(self.link_dh.chunks_exact(nr.max(1))) {
             if l.deviation > share {
-                resend.sources.push(l.source);
+                let rays = if l.all_pass {
+                    Rays::AllPass
+                } else {
+                    Rays::Trace
+                };
+                resend.sources.push(Link {
+                    path: l.source,
+                    rays,
+                });
                 resend.dh.extend_from_slice(dh);
             }
         }
@@ -346,12 +366,12 @@ mod tests {
 
     fn add(r: &mut ShotRecord<()>, b: usize, values: &[f64], i: usize) {
         let (e, dh) = link(values);
-        r.add(b, &e, &dh, 1, constant_deviation(&e, &dh), path(i));
+        r.add(b, &e, &dh, 1, constant_deviation(&e, &dh), path(i), false);
     }
 
     fn resent(sum: NodeSum, allowed: f64) -> Option<Vec<usize>> {
         sum.links_to_resend(allowed, constant_deviation)
-            .map(|r| r.sources.iter().map(|&p| index(p)).collect())
+            .map(|r| r.sources.iter().map(|l| index(l.path)).collect())
     }
 
     #[test]
@@ -434,21 +454,24 @@ mod tests {
             for (a, c) in dh.iter_mut().enumerate() {
                 *c = [(10 * i + a) as f64, 0.5, -1.0];
             }
-            // Links 1 and 3 deviate: they go back.
+            // Links 1 and 3 deviate: they go back; all of link 3's rays passed.
             let deviation = if i % 2 == 1 { 1.0 } else { 0.0 };
-            r.add(2, &e, &dh, nr, deviation, path(i));
+            r.add(2, &e, &dh, nr, deviation, path(i), i == 3);
         }
         let (_, sum) = r.pop_first().expect("recorded");
         let resend = sum.links_to_resend(0.5, |_, _| 1.0).expect("fails");
         assert_eq!(resend.len(), 2);
-        let got: Vec<(usize, Vec<Rgb>)> = resend
+        let got: Vec<(usize, Rays, Vec<Rgb>)> = resend
             .sources
             .iter()
             .zip(resend.coefficients())
-            .map(|(&p, dh)| (index(p), dh.to_vec()))
+            .map(|(l, dh)| (index(l.path), l.rays, dh.to_vec()))
             .collect();
-        for (i, dh) in got {
+        for (i, rays, dh) in got {
             assert!(i == 1 || i == 3);
+            // A link whose rays all passed is taken as seen whole from the node's children.
+            let want_rays = if i == 3 { Rays::AllPass } else { Rays::Trace };
+            assert_eq!(rays, want_rays);
             let want: Vec<Rgb> = (0..nr).map(|a| [(10 * i + a) as f64, 0.5, -1.0]).collect();
             assert_eq!(dh, want);
         }
@@ -466,7 +489,7 @@ mod tests {
             let dh = [[1.0; 3]; MAX_FUNCTIONS];
             let links = 10_000;
             for i in 0..links {
-                r.add(i % 7, &e, &dh, nr, 0.0, path(i % 4096));
+                r.add(i % 7, &e, &dh, nr, 0.0, path(i % 4096), false);
             }
             let per_link = (LINK_ENTRY_BYTES + nr * size_of::<Rgb>()) as u64;
             let within = |held: LinkBytes| {

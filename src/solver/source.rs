@@ -13,16 +13,29 @@
 
 use super::basis::ChildMap;
 use super::cover::{self, NodeCover};
+use super::element::visibility_point;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::lights::{shadow_target, unoccluded_irradiance};
 use super::mean_rgb_sum;
 use super::node_reflectance;
 use super::refine::Shot;
+use super::rules::corner_probe_points;
 use super::visibility::Visibility;
 use crate::domain::ElementRoot;
 use crate::scene::{PunctualLight, Rgb};
 use glam::{DVec2, DVec3};
+
+/// How a transfer decides its shadow rays' verdicts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Rays {
+    /// Trace them.
+    Trace,
+    /// Take every one as passing, tracing none: a link the node-sum check re-sends to a child of
+    /// its node, all of whose rays passed from the node (`node_sums.rs`), and the links the
+    /// recursion makes of it there. No ray checks the oracle's verdict either.
+    AllPass,
+}
 
 /// What a source delivers at one receiver point.
 #[derive(Debug, Clone, Copy, Default)]
@@ -68,7 +81,14 @@ pub(super) trait Source {
     /// What the source delivers at receiver point `x` (normal `n`), its shadow rays ignoring the
     /// faces `ignore` ([`Source::ignored_faces`]); `None` when nothing reaches it unoccluded
     /// (behind the source, outside a spot's cone).
-    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance>;
+    /// `rays`: trace the shadow rays, or take them all as passing ([`Rays`]).
+    fn irradiance_at(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        ignore: [u32; 2],
+        rays: Rays,
+    ) -> Option<PointIrradiance>;
 
     /// The unoccluded irradiance at `x` of the source's mean (the oracle's corner probes).
     fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb;
@@ -97,6 +117,22 @@ pub(super) trait Source {
 
     /// Whether the oracle may split this source.
     fn split(&self) -> SourceSplit;
+}
+
+impl ReceiverNode<'_> {
+    /// Where the node's check point `j` (`rules::corner_probe_points`) casts its rays and
+    /// receives: the point itself, or off an extended face its stand-in, the closest point on
+    /// the face (`visibility_point`), as the node's cover holds it.
+    pub fn check_point(&self, j: usize) -> DVec3 {
+        match &self.cover {
+            Some(c) => self.root.frame.point(c.check_point[j]),
+            None => visibility_point(
+                self.root,
+                &self.map,
+                corner_probe_points(self.root.shape)[j],
+            ),
+        }
+    }
 }
 
 /// The receiving side of one interaction: node `index` of a root's hierarchy.
@@ -142,14 +178,20 @@ impl Source for LightSource<'_> {
         [receiver_face; 2]
     }
 
-    fn irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<PointIrradiance> {
+    fn irradiance_at(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        ignore: [u32; 2],
+        rays: Rays,
+    ) -> Option<PointIrradiance> {
         let (e, target) = unoccluded_irradiance(self.light, x, n, self.far);
         if mean_rgb_sum(e) <= 0.0 {
             return None;
         }
         let weight = self.weight;
         let unoccluded = (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
-        let visible = self.visibility.visible(x, target, ignore);
+        let visible = rays == Rays::AllPass || self.visibility.visible(x, target, ignore);
         Some(PointIrradiance {
             e: if visible { e } else { [0.0; 3] },
             unoccluded,

@@ -6,11 +6,10 @@
 //! points are recorded for the node's check after the shot.
 
 use super::basis::MAX_FUNCTIONS;
-use super::element::{receiving_point, visibility_point};
+use super::element::receiving_point;
 use super::quadrature::QuadPoint;
-use super::source::{ReceiverNode, Source};
+use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
-use glam::DVec2;
 
 /// Most points a receiver is asked at: its rule's, then its check points.
 pub(super) const MAX_POINTS: usize = 64;
@@ -36,17 +35,23 @@ pub(super) struct Received {
     pub exchange_seen_by_receiver: f64,
     /// Rule points where the touching fallback stood in.
     pub touching: u64,
+    /// Rays were traced, and every point that receives (rule and check points) had all its rays
+    /// pass. Never after [`Rays::AllPass`]: a link taken as seen whole is not passed on so again
+    /// (the rays traced from a node sample what its children see, not its grandchildren).
+    pub all_pass: bool,
 }
 
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
-/// at `check_points`, and projects the rule points' irradiance onto the receiver's basis.
+/// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the rule points' irradiance onto the receiver's basis; `rays`
+/// says how the shadow rays are decided.
 pub(super) fn receive(
     source: &impl Source,
     receiver: &ReceiverNode,
     rule: &[QuadPoint],
     psi: &[[f64; MAX_FUNCTIONS]],
     nr: usize,
-    check_points: &[DVec2],
+    check_points: usize,
+    rays: Rays,
 ) -> Received {
     let root = receiver.root;
     let ignore = source.ignored_faces(root.face.0);
@@ -54,7 +59,7 @@ pub(super) fn receive(
     let mut out = Received {
         e: [[0.0; 3]; MAX_POINTS],
         rule_points: nk,
-        points: nk + check_points.len(),
+        points: nk + check_points,
         dh: [[0.0; 3]; MAX_FUNCTIONS],
         any_visible: false,
         any_blocked: false,
@@ -63,15 +68,17 @@ pub(super) fn receive(
         coverage_err: 0.0,
         exchange_seen_by_receiver: 0.0,
         touching: 0,
+        all_pass: rays == Rays::Trace,
     };
     for k in 0..out.points {
         let x = match rule.get(k) {
             Some(q) => receiving_point(root, &receiver.patch, receiver.cover.as_ref(), k, q.st),
-            None => visibility_point(root, &receiver.map, check_points[k - nk]),
+            None => receiver.check_point(k - nk),
         };
-        let Some(p) = source.irradiance_at(x, root.normal, ignore) else {
+        let Some(p) = source.irradiance_at(x, root.normal, ignore, rays) else {
             continue;
         };
+        out.all_pass &= p.any_visible && !p.any_blocked;
         out.e[k] = p.e;
         let Some(q) = rule.get(k) else {
             continue;
@@ -91,4 +98,54 @@ pub(super) fn receive(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::Shape;
+    use crate::solver::far_field::tests::square_under_square;
+    use crate::solver::hierarchy::Hierarchy;
+    use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
+
+    /// The receiver of `square_under_square` (its root node) asked at its rule and check points
+    /// with `rays`: what it received, and the rays traced.
+    fn received(blocked: bool, rays: Rays) -> (Received, u64) {
+        let (bases, rules) = (Bases::new(2), Rules::new(2));
+        let psi = BasisAtControlPoints::new(&bases, &rules);
+        let shape = Shape::Parallelogram;
+        square_under_square(blocked, |source, root, visibility| {
+            let h = Hierarchy::new(bases.of(shape).len());
+            let node = ReceiverNode::new(root, &h, 0);
+            let before = visibility.rays_traced();
+            let got = receive(
+                source,
+                &node,
+                rules.of(shape),
+                psi.of(shape),
+                bases.of(shape).len(),
+                corner_probe_points(shape).len(),
+                rays,
+            );
+            (got, visibility.rays_traced() - before)
+        })
+    }
+
+    /// Rays taken as passing trace none and deliver what an open scene delivers, blocker or not;
+    /// `all_pass` says whether traced rays all passed, and never passes a taken verdict on.
+    #[test]
+    fn rays_taken_as_passing_trace_none_and_see_the_source_whole() {
+        let (open, open_rays) = received(false, Rays::Trace);
+        assert!(open_rays > 0);
+        assert!(open.all_pass && open.any_visible && !open.any_blocked);
+        let (shadowed, _) = received(true, Rays::Trace);
+        assert!(!shadowed.all_pass && shadowed.any_blocked);
+        assert!(shadowed.e[..shadowed.points] != open.e[..open.points]);
+        let (taken, taken_rays) = received(true, Rays::AllPass);
+        assert_eq!(taken_rays, 0);
+        assert_eq!(taken.e[..taken.points], open.e[..open.points]);
+        assert_eq!(taken.dh, open.dh);
+        assert!(taken.any_visible && !taken.any_blocked);
+        assert!(!taken.all_pass, "a taken verdict is not passed on");
+    }
 }
