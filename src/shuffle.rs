@@ -2,9 +2,10 @@
 //! is built from a shuffled order (the trapezoidal map's segment insertion, the order in which
 //! `visibility::bounding_planes` tries the scene's points) is reproducible run to run.
 //!
-//! Owns [`shuffle`] and its generator [`SplitMix64`] (the crate's one pseudo-random generator;
-//! the domain's property tests draw their polygons from it too). Invariant: the same seed and
-//! length give the same permutation.
+//! Owns [`shuffle`] and its generator [`SplitMix64`] (the domain's property tests draw their
+//! polygons from it too), and for the numerical tests a sequence of uniform numbers
+//! (`uniform_sequence`). Invariant: the same seed and length give the same permutation, the same
+//! seed the same sequence.
 
 /// SplitMix64: a tiny, good-enough generator for a shuffle.
 pub(crate) struct SplitMix64(u64);
@@ -23,6 +24,18 @@ impl SplitMix64 {
     /// Uniform in `0..n` (n > 0), by multiply-shift.
     fn below(&mut self, n: usize) -> usize {
         ((u128::from(self.next()) * n as u128) >> 64) as usize
+    }
+}
+
+/// Uniform numbers in `[0, 1)` from a fixed seed (a 64-bit linear congruential generator, its
+/// top 53 bits): the numerical tests' random points and coefficients.
+#[cfg(test)]
+pub(crate) fn uniform_sequence(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 

@@ -293,13 +293,7 @@ mod tests {
     /// approached within 5 % (the bound is not loose).
     #[test]
     fn magnitude_bounds_hold_at_random_points() {
-        let mut seed = 4242u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::shuffle::uniform_sequence(4242);
         let mut phi = [0.0; MAX_FUNCTIONS];
         for (shape, order) in shapes_and_orders() {
             let basis = Basis::new(shape, order);

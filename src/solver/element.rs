@@ -43,21 +43,45 @@ pub(super) fn receiving_point(
     }
 }
 
+/// A sphere around a set of points: centred on their mean, through the farthest.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Sphere {
+    pub centre: DVec3,
+    pub radius: f64,
+}
+
+impl Sphere {
+    pub fn around(points: &[DVec3]) -> Self {
+        debug_assert!(!points.is_empty());
+        let centre = points.iter().copied().sum::<DVec3>() / points.len() as f64;
+        let radius = points
+            .iter()
+            .map(|c| c.distance(centre))
+            .fold(0.0, f64::max);
+        Sphere { centre, radius }
+    }
+
+    /// The sphere around a root's corners (its whole domain for an extended root).
+    pub fn of_root(root: &ElementRoot) -> Self {
+        Self::around(&root.corners())
+    }
+}
+
 /// What a source element emits from: its own shape, or the face inside it; on its front side only.
 pub(super) struct Emitter {
     shape: EmitterShape,
+    /// The element's corners and their bounding sphere (a partly covered element's face lies
+    /// inside them).
+    corners: Vec<DVec3>,
+    sphere: Sphere,
     /// A point of the source's plane and its unit normal (the emitting side).
     origin: DVec3,
     normal: DVec3,
 }
 
 enum EmitterShape {
-    /// The element's own polygon, with the centre and radius of its corners' bounding sphere.
-    Polygon {
-        corners: Vec<DVec3>,
-        centre: DVec3,
-        radius: f64,
-    },
+    /// The element's own polygon.
+    Polygon,
     Rings(Arc<FaceRings>),
 }
 
@@ -93,23 +117,15 @@ impl Emitter {
     pub(super) fn new(root: &ElementRoot, patch: &Patch, rings: Option<&Arc<FaceRings>>) -> Self {
         let shape = match rings {
             Some(r) => EmitterShape::Rings(r.clone()),
-            None => {
-                let mut corners = Vec::with_capacity(4);
-                patch.corners(root.shape, &mut corners);
-                let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-                let radius = corners
-                    .iter()
-                    .map(|c| c.distance(centre))
-                    .fold(0.0, f64::max);
-                EmitterShape::Polygon {
-                    corners,
-                    centre,
-                    radius,
-                }
-            }
+            None => EmitterShape::Polygon,
         };
+        let mut corners = Vec::with_capacity(4);
+        patch.corners(root.shape, &mut corners);
+        let sphere = Sphere::around(&corners);
         Emitter {
             shape,
+            corners,
+            sphere,
             origin: patch.origin,
             normal: root.normal,
         }
@@ -123,31 +139,29 @@ impl Emitter {
             return 0.0;
         }
         match &self.shape {
-            EmitterShape::Polygon { corners, .. } => {
-                kernel::point_polygon_form_factor(x, n, corners)
-            }
+            EmitterShape::Polygon => kernel::point_polygon_form_factor(x, n, &self.corners),
             EmitterShape::Rings(r) => kernel::point_rings_form_factor(x, n, r),
         }
     }
 
-    /// Does the source's quadrature rule give the form factor at `x` (normal `n`) as closely as
-    /// [`kernel::rule_suffices_radii`] promises? When `x` is in front of the source's plane, at
-    /// least `radii` times the polygon's radius from its centre, and every corner is in front of
-    /// `x`'s tangent plane (the kernel is then smooth over the source; where the plane cuts it,
-    /// only the exact contour integral is right). Never for the face inside a partly covered
-    /// element: its rule is weighted by coverage, and the exact form factor is what corrects it.
-    pub(super) fn rule_suffices(&self, x: DVec3, n: DVec3, radii: f64) -> bool {
-        let EmitterShape::Polygon {
-            corners,
-            centre,
-            radius,
-        } = &self.shape
-        else {
-            return false;
-        };
+    /// Is `x` (normal `n`) in front of the source's plane, at least `radii` times the radius of
+    /// the element's corners' sphere from its centre, with every corner in front of `x`'s tangent
+    /// plane? The kernel is then smooth over the element, and its rule's sum within
+    /// [`kernel::rule_suffices_radii`]'s promise of the element's own form factor.
+    pub(super) fn far_in_front(&self, x: DVec3, n: DVec3, radii: f64) -> bool {
         self.normal.dot(x - self.origin) > 0.0
-            && x.distance_squared(*centre) >= (radii * radius).powi(2)
-            && corners.iter().all(|c| n.dot(*c - x) >= 0.0)
+            && x.distance_squared(self.sphere.centre) >= (radii * self.sphere.radius).powi(2)
+            && self.corners.iter().all(|c| n.dot(*c - x) >= 0.0)
+    }
+
+    /// Does the source's quadrature rule give the form factor at `x` (normal `n`) as closely as
+    /// [`kernel::rule_suffices_radii`] promises? When [`Emitter::far_in_front`] (where the
+    /// tangent plane cuts the source, only the exact contour integral is right). Never for the
+    /// face inside a partly covered element: its rule is weighted by coverage, and the exact
+    /// form factor is what corrects it (a far link, whose whole transfer is within the
+    /// threshold, takes the rule's sum there too: `ElementSource::far_irradiance_at`).
+    pub(super) fn rule_suffices(&self, x: DVec3, n: DVec3, radii: f64) -> bool {
+        matches!(self.shape, EmitterShape::Polygon) && self.far_in_front(x, n, radii)
     }
 }
 
@@ -191,24 +205,22 @@ impl Patch {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::domain::{FaceId, Frame, Side};
 
-    /// A native unit square in the plane z = 0, facing +z.
-    fn unit_square() -> ElementRoot {
+    /// A native parallelogram at `origin` with sides `u` and `v` (facing `u x v`), face 0,
+    /// reflectance 0.5, not emitting.
+    pub(in crate::solver) fn parallelogram_root(origin: DVec3, u: DVec3, v: DVec3) -> ElementRoot {
+        let cross = u.cross(v);
         ElementRoot {
             face: FaceId(0),
             side: Side::Front,
             shape: Shape::Parallelogram,
-            frame: Frame {
-                origin: DVec3::ZERO,
-                u: DVec3::X,
-                v: DVec3::Y,
-            },
-            normal: DVec3::Z,
-            area_m2: 1.0,
-            face_area_m2: 1.0,
+            frame: Frame { origin, u, v },
+            normal: cross.normalize(),
+            area_m2: cross.length(),
+            face_area_m2: cross.length(),
             mask: None,
             material: 0,
             rho: [0.5; 3],
@@ -217,9 +229,15 @@ mod tests {
         }
     }
 
+    /// A native unit square in the plane z = 0, facing +z.
+    fn unit_square() -> ElementRoot {
+        parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y)
+    }
+
     /// The rule stands in for the contour integral only far enough (in radii of the corners'
     /// sphere, `sqrt(1/2)` here), in front of the source, with the whole source in front of the
-    /// receiving point's tangent plane; never for a face given as rings.
+    /// receiving point's tangent plane; never for a face given as rings, which is far in front
+    /// by the same test (a far link takes the rule's sum there).
     #[test]
     fn the_rule_stands_in_only_far_in_front_and_never_for_rings() {
         let root = unit_square();
@@ -239,6 +257,10 @@ mod tests {
         let rings = world_rings(&root, &[corners.to_vec()]);
         let ringed = Emitter::new(&root, &patch, Some(&rings));
         assert!(!ringed.rule_suffices(above(1e3), down, 4.0));
+        // Though as far in front (what a far link asks), by the element's own corners.
+        assert!(ringed.far_in_front(above(4.0 * radius + 1e-9), down, 4.0));
+        assert!(!ringed.far_in_front(above(4.0 * radius - 1e-9), down, 4.0));
+        assert!(!ringed.far_in_front(above(10.0), tilted, 4.0));
         // Both give the same exact form factor.
         let x = above(3.0);
         assert!((ringed.form_factor(x, down) - emitter.form_factor(x, down)).abs() < 1e-15);

@@ -454,11 +454,20 @@ impl<'s> ElementSource<'s> {
 
     /// The irradiance of a far link at `x` (normal `n`): [`Source::irradiance_at`] with one
     /// shadow ray, to the source's centre, standing for every rule point's (0 when it is
-    /// blocked). A far link's whole transfer is within the oracle's threshold (`far_field.rs`),
-    /// the budget any other visibility estimate of it would be allowed. `None` when `x` is behind
-    /// the source or the source's plane.
+    /// blocked), and beyond the rule's radii ([`Emitter::far_in_front`]) the rule's sum for the
+    /// form factor even on a partly covered element (its coverage-weighted rule is a few percent
+    /// off the face's exact form factor there). A far link's whole transfer is within the
+    /// oracle's threshold (`far_field.rs`), the budget any other estimate of it would be
+    /// allowed. `None` when `x` is behind the source or the source's plane.
     pub(super) fn far_irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<Rgb> {
-        let f = self.form_factor(x, n);
+        let f = if self
+            .emitter
+            .far_in_front(x, n, self.shot.rules.form_factor_radii)
+        {
+            self.rule_form_factor(x, n)
+        } else {
+            self.form_factor(x, n)
+        };
         if f <= 0.0 {
             return None;
         }

@@ -20,7 +20,7 @@
 //! tree, or gathered at its root node where the reflectance varies: `ShotContext::accept_far`),
 //! and counted like any link.
 
-use super::element::visibility_point;
+use super::element::{visibility_point, Sphere};
 use super::element_source::ElementSource;
 #[cfg(test)]
 use super::kernel::point_polygon_form_factor;
@@ -28,26 +28,6 @@ use super::source::Source;
 use crate::domain::{ElementRoot, Shape};
 use crate::scene::Rgb;
 use glam::{DVec2, DVec3};
-
-/// A root's bounding sphere.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Sphere {
-    pub centre: DVec3,
-    pub radius: f64,
-}
-
-impl Sphere {
-    /// The sphere around a root's corners (its whole domain for an extended root).
-    pub fn of_root(root: &ElementRoot) -> Self {
-        let corners = root.corners();
-        let centre = corners.iter().copied().sum::<DVec3>() / corners.len() as f64;
-        let radius = corners
-            .iter()
-            .map(|c| c.distance(centre))
-            .fold(0.0, f64::max);
-        Sphere { centre, radius }
-    }
-}
 
 /// The largest fraction of the power leaving (any point of) `source` that can reach `receiver`:
 /// `(r_R / (D - r_S))^2`, or 1 when the spheres are too close for the bound.
@@ -111,6 +91,7 @@ pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot, x: DVec
 pub(super) mod tests {
     use super::*;
     use crate::solver::basis::{Basis, MAX_FUNCTIONS};
+    use crate::solver::element::tests::parallelogram_root;
     use crate::solver::source::Rays;
     use crate::solver::visibility::Visibility;
 
@@ -126,7 +107,7 @@ pub(super) mod tests {
         use crate::solver::refine::Shot;
         use crate::solver::rules::{Bases, Rules};
         use crate::solver::visibility::Visibility;
-        let mut rnd = uniform(31);
+        let mut rnd = crate::shuffle::uniform_sequence(31);
         let visibility = Visibility::new(Vec::new(), 30.0);
         for shape in [Shape::Triangle, Shape::Parallelogram] {
             for order in 1..=3 {
@@ -219,7 +200,7 @@ pub(super) mod tests {
     /// `cos-weighted` of a small receiver disc from points of the source never exceeds it.
     #[test]
     fn far_field_bound_holds_for_random_pairs() {
-        let mut rnd = uniform(12345);
+        let mut rnd = crate::shuffle::uniform_sequence(12345);
         for _ in 0..2000 {
             let s = Sphere {
                 centre: DVec3::new(rnd(), rnd(), rnd()) * 10.0,
@@ -326,42 +307,13 @@ pub(super) mod tests {
         );
     }
 
-    /// Uniform numbers in [0, 1) from a fixed seed (a linear congruential generator).
-    fn uniform(mut seed: u64) -> impl FnMut() -> f64 {
-        move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        }
-    }
-
-    /// A native parallelogram root at `origin` spanned by `u`, `v` (its front side).
-    fn parallelogram_root(origin: DVec3, u: DVec3, v: DVec3) -> ElementRoot {
-        let cross = u.cross(v);
-        ElementRoot {
-            face: crate::domain::FaceId(0),
-            side: crate::domain::Side::Front,
-            shape: Shape::Parallelogram,
-            frame: crate::domain::Frame { origin, u, v },
-            normal: cross.normalize(),
-            area_m2: cross.length(),
-            face_area_m2: cross.length(),
-            mask: None,
-            material: 0,
-            rho: [0.5; 3],
-            exitance: [0.0; 3],
-            reflectance: None,
-        }
-    }
-
     /// The point estimate against the exact form factor at the receiver's centre, for random
     /// pairs of parallelograms at least `POINT_ESTIMATE_RADII` sums of radii apart: within 5 %
     /// of it, or of 0.3 times the head-on value `A / (pi d^2)` where it is smaller (grazing
     /// angles); `None` nearer.
     #[test]
     fn point_estimate_is_close_to_the_polygon_form_factor() {
-        let mut rnd = uniform(777);
+        let mut rnd = crate::shuffle::uniform_sequence(777);
         let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
         let (mut checked, mut near) = (0, 0);
         for _ in 0..4000 {

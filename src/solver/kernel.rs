@@ -209,13 +209,7 @@ mod tests {
     fn the_rule_gives_the_form_factor_beyond_its_radii() {
         use crate::domain::Shape;
         use crate::solver::quadrature::rule;
-        let mut seed = 99u64;
-        let mut rnd = move || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rnd = crate::shuffle::uniform_sequence(99);
         let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
         for shape in [Shape::Parallelogram, Shape::Triangle] {
             for order in 1..=3 {
@@ -240,8 +234,8 @@ mod tests {
                         Shape::Parallelogram => vec![DVec3::ZERO, u, u + w, w],
                         Shape::Triangle => vec![DVec3::ZERO, u, w],
                     };
-                    let centre = poly.iter().copied().sum::<DVec3>() / poly.len() as f64;
-                    let radius = poly.iter().map(|p| p.distance(centre)).fold(0.0, f64::max);
+                    let crate::solver::element::Sphere { centre, radius } =
+                        crate::solver::element::Sphere::around(&poly);
                     let at = (1.0 + 2.0 * (checked % 7) as f64 / 6.0) * radii;
                     let error = |k: f64| {
                         let x = centre + dir.normalize() * radius * k;

@@ -8,7 +8,7 @@
 //! on; the node-sum check (`node_sums.rs`) takes back exactly what `gather` added.
 
 use super::basis::MAX_FUNCTIONS;
-use super::far_field::Sphere;
+use super::element::Sphere;
 use super::hierarchy::Hierarchy;
 use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
@@ -203,20 +203,27 @@ impl ShotContext<'_> {
     /// Accepts a far link (`far_field.rs`): a constant irradiance `e` over `root`, added to
     /// every node at once where the reflectance is constant ([`Hierarchy::add_constant`], no
     /// push-pull of the whole tree per far link), else gathered at the root node for the shot's
-    /// push-pull.
-    pub fn accept_far(&self, rcv: &mut Hierarchy, root: &ElementRoot, e: Rgb, direct: bool) {
+    /// push-pull. Whether it added light: a blocked link (`e` zero) is counted and adds nothing,
+    /// so the receiver's power stands.
+    pub fn accept_far(
+        &self,
+        rcv: &mut Hierarchy,
+        root: &ElementRoot,
+        e: Rgb,
+        direct: bool,
+    ) -> bool {
         self.links.fetch_add(1, Ordering::Relaxed);
         if e == [0.0; 3] {
-            // A blocked link: counted, nothing to add.
-            return;
+            return false;
         }
         if rcv.reflectance.is_empty() {
             rcv.add_constant(e, root.rho, direct);
-            return;
+            return true;
         }
         let mut dh = [[0.0; 3]; MAX_FUNCTIONS];
         dh[0] = e;
         gather(rcv, 0, &dh[..rcv.len]);
+        true
     }
 
     /// The first of node `b`'s four children, splitting `b` first if it is a leaf (the new

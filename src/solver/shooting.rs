@@ -8,9 +8,10 @@
 
 use super::basis::MAX_FUNCTIONS;
 use super::cover::{self, face_integral};
+use super::element::Sphere;
 use super::element_source::{ElementShot, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
-use super::far_field::{self, Sphere};
+use super::far_field;
 use super::hierarchy::Hierarchy;
 use super::indirect_forecast::{forecast, ForecastInput, IndirectForecast};
 use super::kernel::point_polygon_form_factor;
@@ -555,9 +556,7 @@ fn shoot(
                             far_field::far_irradiance(s, &roots[ri], ctx.link_points[ri])
                         });
                         if let Some(e) = e {
-                            ctx.accept_far(h, &roots[ri], e, direct);
-                            // A blocked far link adds nothing: the receiver's power stands.
-                            took_light = e != [0.0; 3];
+                            took_light = ctx.accept_far(h, &roots[ri], e, direct);
                         }
                     } else {
                         let mut record = ShotRecord::default();

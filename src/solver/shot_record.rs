@@ -415,13 +415,7 @@ mod tests {
     #[test]
     fn what_stays_is_within_the_budget() {
         // Links of random steps: whatever is kept sums to a deviation within the budget.
-        let mut seed = 12345u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = crate::shuffle::uniform_sequence(12345);
         for _ in 0..200 {
             let mut r = ShotRecord::default();
             let n = 2 + (next() * 20.0) as usize;

@@ -43,13 +43,7 @@ fn segment_through_wall_is_blocked_unless_ignored() {
 fn matches_brute_force_on_random_segments() {
     let tris = wall();
     let v = Visibility::new(tris.clone(), 2.0);
-    let mut state = 12345u64;
-    let mut rnd = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64) / ((1u64 << 53) as f64)
-    };
+    let mut rnd = crate::shuffle::uniform_sequence(12345);
     for _ in 0..2000 {
         let p = DVec3::new(rnd() * 1.4 - 0.2, rnd() * 1.4 - 0.2, rnd() * 0.4);
         let q = DVec3::new(rnd() * 1.4 - 0.2, rnd() * 1.4 - 0.2, 0.6 + rnd() * 0.4);
