@@ -413,9 +413,10 @@ mod tests {
                 .collect();
             maps.extend_from_slice(&level);
         }
-        let mut off_face = 0;
+        let (mut off_face, mut full) = (0, 0);
         for m in &maps {
             let c = NodeCover::new(&mask, m, &r, &basis, true);
+            full += usize::from(c.status == ElementStatus::Full);
             for (j, &st) in r.check_points.iter().enumerate() {
                 let p = m.apply(st);
                 assert_eq!(c.check_point[j], mask.closest_point(p), "{m:?} point {j}");
@@ -428,6 +429,7 @@ mod tests {
             }
         }
         assert!(off_face > 0, "some check points lie in the hole");
+        assert!(full > 0, "some nodes are fully covered");
     }
 
     #[test]

@@ -4,8 +4,8 @@
 //! receiver sees it: the quadrature of its radiosity over its rule's points, one shadow ray per
 //! point (one in all for a far link), scaled to the exact form factor (or, beyond the distance
 //! where the rule's own sum is within `1e-4` of the head-on value, `kernel::rule_suffices_radii`,
-//! to that sum),
-//! and the reciprocity check.
+//! to that sum; a far link takes the sum there on a partly covered element too), and the
+//! reciprocity check.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -241,7 +241,8 @@ impl<'s> ElementSource<'s> {
         // The source's radiosity at its rule points. A partly covered source's values are shifted
         // by a constant so that their alpha-weighted mean is its exact mean over the face
         // (`SourceElement::face_mean`): the points keep the variation, the constant carries the
-        // face's exact power with the exact form factor. The alpha weights alone miss the face's
+        // face's exact power with the exact form factor (near links; a far link's whole transfer is
+        // within the threshold, and it takes the rule's sum beyond its radii). The alpha weights alone miss the face's
         // shape (a sliver of face along the element's border takes the weight of points well
         // inside, where the polynomial differs), and an inner node's polynomial is its projection
         // over the whole element, off-face extension included: unshifted, a Red Eclipse floor's
@@ -272,7 +273,7 @@ impl<'s> ElementSource<'s> {
             }
         }
         // The amplitude of the source's non-constant part: what a misplaced emission weight can
-        // move (the constant part is exact: it uses the exact form factor).
+        // move (the constant part is exact where the exact form factor is used).
         let weighted_amplitude = |bfn: usize| {
             (0..3)
                 .map(|ch| weight[ch] * src.coeffs[bfn][ch].abs())

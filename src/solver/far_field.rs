@@ -1,8 +1,9 @@
 //! Far receivers of a shot: a receiver root whose whole transfer from the shooter is bounded
 //! within the oracle's threshold, before any ray or quadrature, takes the shot as one constant
 //! link: the source's irradiance at the receiver's centre (its quadrature, scaled to the form
-//! factor of `ElementSource::form_factor`), a constant over the root, with one shadow ray (to the source's centre) deciding its
-//! visibility. The oracle would accept a link of that size at the root whatever its visibility
+//! factor of `ElementSource::form_factor`, or beyond the rule's radii the rule's own sum even on
+//! a partly covered element: `ElementSource::far_irradiance_at`), a constant over the root, with
+//! one shadow ray (to the source's centre) deciding its visibility. The oracle would accept a link of that size at the root whatever its visibility
 //! (`oracle.rs`: an error above the threshold is needed for any other verdict), so the
 //! refinement's result is within the same budget; what it saves is the quadrature at every rule
 //! and check point of every far receiver, shot after shot, which made a level's cost grow like

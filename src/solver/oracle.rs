@@ -6,7 +6,8 @@
 //! at points near the corners (when every ray passed); a shadow boundary the rays may have missed
 //! (rays between the corners, then spread over both elements); the exchange the receiver's
 //! points missed (reciprocity); the reflectance a textured leaf misplaces; partial visibility
-//! (the whole unoccluded transfer is at stake); a partly covered source's coverage error.
+//! (the whole unoccluded transfer is at stake); a partly covered source's coverage error. A link
+//! whose rays were taken as passing (`Rays::AllPass`) casts no ray to check the verdict.
 //!
 //! Invariant: a verdict other than `Accept` only when the error in transferred power exceeds the
 //! threshold; `Capped` only when neither side may be split.

@@ -18,7 +18,7 @@ use super::source::{Rays, ReceiverNode, Source};
 use super::transfer::{self, Received};
 use super::visibility::Visibility;
 use super::Quantity;
-use crate::domain::ElementRoot;
+use crate::domain::{ElementRoot, ElementStatus};
 use crate::scene::Rgb;
 use glam::DVec3;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -107,8 +107,9 @@ impl ShotContext<'_> {
     }
 
     /// [`ShotContext::transfer`] of the part at `link.path` under the part the record started
-    /// from, its shadow rays decided as `link.rays` says (and so those of every link the
-    /// recursion makes of it: their parts and nodes lie inside this one's).
+    /// from, its shadow rays decided as `link.rays` says, on a fully covered or native node (an
+    /// extended root's other nodes trace), and so those of the source's parts if the oracle
+    /// splits the source; the node's children trace if it splits the node.
     #[allow(clippy::too_many_arguments)]
     pub fn transfer_at<S: Shot>(
         &self,
@@ -129,8 +130,14 @@ impl ShotContext<'_> {
             return;
         };
         let receiver = ReceiverNode::new(rroot, rcv, b);
-        let received = self.receive(&source, &receiver, link.rays);
-        match oracle::evaluate(self, &source, &receiver, &received, weight, link.rays) {
+        let rays = match (link.rays, &receiver.cover) {
+            // Off the face, a node's points cast from stand-ins on the face's border, which
+            // the rays of the node the link was re-sent from need not have sampled.
+            (Rays::AllPass, Some(c)) if c.status != ElementStatus::Full => Rays::Trace,
+            (rays, _) => rays,
+        };
+        let received = self.receive(&source, &receiver, rays);
+        match oracle::evaluate(self, &source, &receiver, &received, weight, rays) {
             Verdict::Accept => self.accept(link.path, rroot, rcv, b, &received, record),
             Verdict::Capped => {
                 self.capped.fetch_add(1, Ordering::Relaxed);
@@ -140,13 +147,18 @@ impl ShotContext<'_> {
                 for (c, child) in shot.children(part).iter().enumerate() {
                     let sub = Link {
                         path: link.path.child(c),
-                        rays: link.rays,
+                        rays,
                     };
                     self.transfer_at(shot, child, sub, rcv_index, rcv, b, record);
                 }
             }
             Verdict::SplitReceiver => {
                 let first = self.first_child(rcv, b, rroot);
+                // The node's children trace: rays taken as passing stand for one level.
+                let link = Link {
+                    path: link.path,
+                    rays: Rays::Trace,
+                };
                 for c in 0..4 {
                     self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);
                 }

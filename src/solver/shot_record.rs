@@ -4,7 +4,8 @@
 //! Owns [`ShotRecord`]: per node, the sum of its links' irradiance at the node's rule points then
 //! check points and the sum of their coefficients; per link only what judging and re-sending it
 //! needs: its source as a [`SourcePath`] (the children taken from the part the shot started
-//! from, rebuilt by [`Parts`]), its own deviation, and its coefficients (to take it back exactly).
+//! from, rebuilt by [`Parts`]), its own deviation, whether all its traced rays passed, and its
+//! coefficients (to take it back exactly).
 //! A link's record costs `LINK_ENTRY_BYTES + nr * size_of::<Rgb>()` bytes whatever its source
 //! (`a_recorded_link_costs_its_path_deviation_and_coefficients_whatever_the_part`); point values
 //! are kept per node, so they grow with elements, not with links.
@@ -75,7 +76,7 @@ struct LinkEntry {
 /// Bytes of one link's entry beside its `nr` coefficients.
 pub(super) const LINK_ENTRY_BYTES: usize = size_of::<LinkEntry>();
 
-// A link's entry is a path and a deviation: never its source part or its point values.
+// A link's entry is a path, a flag and a deviation: never its source part or its point values.
 const _: () = assert!(LINK_ENTRY_BYTES <= 16);
 
 /// The per-link entries of a record at their largest: their bytes (as allocated) and the links

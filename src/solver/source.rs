@@ -22,7 +22,7 @@ use super::node_reflectance;
 use super::refine::Shot;
 use super::rules::corner_probe_points;
 use super::visibility::Visibility;
-use crate::domain::ElementRoot;
+use crate::domain::{ElementRoot, Shape};
 use crate::scene::{PunctualLight, Rgb};
 use glam::{DVec2, DVec3};
 
@@ -32,8 +32,9 @@ pub(super) enum Rays {
     /// Trace them.
     Trace,
     /// Take every one as passing, tracing none: a link the node-sum check re-sends to a child of
-    /// its node, all of whose rays passed from the node (`node_sums.rs`), and the links the
-    /// recursion makes of it there. No ray checks the oracle's verdict either.
+    /// its node, all of whose rays passed from the node (`node_sums.rs`), on a fully covered or
+    /// native child, and the source's parts if the oracle splits the source there (not the
+    /// child's children: they trace). No ray checks the oracle's verdict either.
     AllPass,
 }
 
@@ -124,6 +125,8 @@ impl ReceiverNode<'_> {
     /// receives: the point itself, or off an extended face its stand-in, the closest point on
     /// the face (`visibility_point`), as the node's cover holds it.
     pub fn check_point(&self, j: usize) -> DVec3 {
+        // Extended roots are parallelograms: their covers hold a parallelogram's check points.
+        debug_assert!(self.cover.is_none() || self.root.shape == Shape::Parallelogram);
         match &self.cover {
             Some(c) => self.root.frame.point(c.check_point[j]),
             None => visibility_point(

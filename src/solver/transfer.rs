@@ -35,15 +35,16 @@ pub(super) struct Received {
     pub exchange_seen_by_receiver: f64,
     /// Rule points where the touching fallback stood in.
     pub touching: u64,
-    /// Rays were traced, and every point that receives (rule and check points) had all its rays
-    /// pass. Never after [`Rays::AllPass`]: a link taken as seen whole is not passed on so again
-    /// (the rays traced from a node sample what its children see, not its grandchildren).
+    /// Rays were traced from every point (rule and check points), and all passed. Never after
+    /// [`Rays::AllPass`]: a link taken as seen whole is not passed on so again (the rays traced
+    /// from a node sample what its children see, not its grandchildren).
     pub all_pass: bool,
 }
 
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
-/// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the rule points' irradiance onto the receiver's basis; `rays`
-/// says how the shadow rays are decided.
+/// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
+/// rule points' irradiance onto the receiver's basis; `rays` says how the shadow rays are
+/// decided.
 pub(super) fn receive(
     source: &impl Source,
     receiver: &ReceiverNode,
@@ -76,6 +77,8 @@ pub(super) fn receive(
             None => receiver.check_point(k - nk),
         };
         let Some(p) = source.irradiance_at(x, root.normal, ignore, rays) else {
+            // No ray sampled what this point's neighbours in a child may see.
+            out.all_pass = false;
             continue;
         };
         out.all_pass &= p.any_visible && !p.any_blocked;
