@@ -42,9 +42,10 @@ impl ShotContext<'_> {
     /// A link given back is sent again as the part its path leads to from the record's start
     /// (`Parts`, by the shot's own `children`: the part the recursion had), and taken back by the
     /// coefficients it was gathered with. A link all of whose traced rays passed (from the node's
-    /// rule and check points to the part's) is taken as seen whole from the node's children
-    /// ([`Rays::AllPass`](super::source::Rays)): they lie inside the node, whose rays sampled
-    /// the space between them and the part; their own links trace again when re-sent further.
+    /// rule and check points to the part's) is taken as seen whole from the node's fully covered
+    /// or native children ([`Rays::AllPass`](super::source::Rays)): they lie inside the node,
+    /// whose rays sampled the space between them and the part; their own children, and their
+    /// links when re-sent further, trace again.
     /// The record's largest size goes to `link_records`.
     pub(super) fn refine_by_node_sums<S: Shot>(
         &self,
