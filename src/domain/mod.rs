@@ -77,6 +77,21 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// World-space corners of `shape` on this frame (3 or 4), without allocating.
+    pub fn corners(&self, shape: Shape) -> Corners {
+        let (o, u, v) = (self.origin, self.u, self.v);
+        match shape {
+            Shape::Triangle => Corners {
+                points: [o, o + u, o + v, o],
+                len: 3,
+            },
+            Shape::Parallelogram => Corners {
+                points: [o, o + u, o + u + v, o + v],
+                len: 4,
+            },
+        }
+    }
+
     pub fn point(&self, st: DVec2) -> DVec3 {
         self.origin + self.u * st.x + self.v * st.y
     }
@@ -118,22 +133,7 @@ impl ElementRoot {
     /// World-space corners of the root's shape (3 or 4), without allocating: the solver asks
     /// for them for every root in every shot.
     pub fn corners(&self) -> Corners {
-        let f = &self.frame;
-        match self.shape {
-            Shape::Triangle => Corners {
-                points: [f.origin, f.origin + f.u, f.origin + f.v, f.origin],
-                len: 3,
-            },
-            Shape::Parallelogram => Corners {
-                points: [
-                    f.origin,
-                    f.origin + f.u,
-                    f.origin + f.u + f.v,
-                    f.origin + f.v,
-                ],
-                len: 4,
-            },
-        }
+        self.frame.corners(self.shape)
     }
 }
 

@@ -295,7 +295,7 @@ mod tests {
             rule: rule(Shape::Parallelogram, order + 1),
             zones: zones_of_influence(order + 1),
             moment_rule: rule(Shape::Triangle, 3),
-            check_points: crate::solver::rules::parallelogram_check_points(),
+            check_points: crate::solver::rules::PARALLELOGRAM_CHECK_POINTS,
         }
     }
 

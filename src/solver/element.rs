@@ -10,7 +10,7 @@
 use super::basis::ChildMap;
 use super::cover::{node_box, NodeCover};
 use super::kernel;
-use crate::domain::{ElementRoot, ElementStatus, Shape};
+use crate::domain::{Corners, ElementRoot, ElementStatus, Frame, Shape};
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
@@ -72,7 +72,7 @@ pub(super) struct Emitter {
     shape: EmitterShape,
     /// The element's corners and their bounding sphere (a partly covered element's face lies
     /// inside them).
-    corners: Vec<DVec3>,
+    corners: Corners,
     sphere: Sphere,
     /// A point of the source's plane and its unit normal (the emitting side).
     origin: DVec3,
@@ -119,8 +119,7 @@ impl Emitter {
             Some(r) => EmitterShape::Rings(r.clone()),
             None => EmitterShape::Polygon,
         };
-        let mut corners = Vec::with_capacity(4);
-        patch.corners(root.shape, &mut corners);
+        let corners = patch.corners(root.shape);
         let sphere = Sphere::around(&corners);
         Emitter {
             shape,
@@ -190,14 +189,9 @@ impl Patch {
     pub(super) fn point(&self, st: DVec2) -> DVec3 {
         self.origin + self.u * st.x + self.v * st.y
     }
-    pub(super) fn corners(&self, shape: Shape, out: &mut Vec<DVec3>) {
-        out.clear();
-        out.push(self.origin);
-        out.push(self.origin + self.u);
-        if shape == Shape::Parallelogram {
-            out.push(self.origin + self.u + self.v);
-        }
-        out.push(self.origin + self.v);
+    pub(super) fn corners(&self, shape: Shape) -> Corners {
+        let (origin, u, v) = (self.origin, self.u, self.v);
+        Frame { origin, u, v }.corners(shape)
     }
     pub(super) fn min_edge(&self) -> f64 {
         self.u.length().min(self.v.length())
@@ -207,7 +201,7 @@ impl Patch {
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;
-    use crate::domain::{FaceId, Frame, Side};
+    use crate::domain::{FaceId, Side};
 
     /// A native parallelogram at `origin` with sides `u` and `v` (facing `u x v`), face 0,
     /// reflectance 0.5, not emitting.

@@ -51,7 +51,7 @@ impl Rules {
                 rule: rule(Shape::Parallelogram, order + 1),
                 zones: zones_of_influence(order + 1),
                 moment_rule: rule(Shape::Triangle, 3),
-                check_points: parallelogram_check_points(),
+                check_points: PARALLELOGRAM_CHECK_POINTS,
             },
             form_factor_radii: kernel::rule_suffices_radii(order),
         }
@@ -99,23 +99,21 @@ impl BasisAtControlPoints {
     }
 }
 
-/// A parallelogram's [`corner_probe_points`], as an array.
-pub(super) fn parallelogram_check_points() -> [DVec2; CHECK_POINTS] {
-    let mut points = [DVec2::ZERO; CHECK_POINTS];
-    points.copy_from_slice(corner_probe_points(Shape::Parallelogram));
-    points
-}
-
-/// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.
-pub(super) fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
+/// A parallelogram's [`corner_probe_points`].
+pub(super) const PARALLELOGRAM_CHECK_POINTS: [DVec2; CHECK_POINTS] = {
     const E: f64 = CORNER_INSET;
-    const SQUARE: [DVec2; 5] = [
+    [
         DVec2::new(E, E),
         DVec2::new(1.0 - E, E),
         DVec2::new(1.0 - E, 1.0 - E),
         DVec2::new(E, 1.0 - E),
         DVec2::new(0.5, 0.5),
-    ];
+    ]
+};
+
+/// Points near the corners of a reference shape, inset by [`CORNER_INSET`], and its centroid.
+pub(super) fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
+    const E: f64 = CORNER_INSET;
     const TRIANGLE: [DVec2; 4] = [
         DVec2::new(E, E),
         DVec2::new(1.0 - 2.0 * E, E),
@@ -123,7 +121,7 @@ pub(super) fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
         DVec2::new(1.0 / 3.0, 1.0 / 3.0),
     ];
     match shape {
-        Shape::Parallelogram => &SQUARE,
+        Shape::Parallelogram => &PARALLELOGRAM_CHECK_POINTS,
         Shape::Triangle => &TRIANGLE,
     }
 }

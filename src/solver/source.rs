@@ -120,24 +120,6 @@ pub(super) trait Source {
     fn split(&self) -> SourceSplit;
 }
 
-impl ReceiverNode<'_> {
-    /// Where the node's check point `j` (`rules::corner_probe_points`) casts its rays and
-    /// receives: the point itself, or off an extended face its stand-in, the closest point on
-    /// the face (`visibility_point`), as the node's cover holds it.
-    pub fn check_point(&self, j: usize) -> DVec3 {
-        // Extended roots are parallelograms: their covers hold a parallelogram's check points.
-        debug_assert!(self.cover.is_none() || self.root.shape == Shape::Parallelogram);
-        match &self.cover {
-            Some(c) => self.root.frame.point(c.check_point[j]),
-            None => visibility_point(
-                self.root,
-                &self.map,
-                corner_probe_points(self.root.shape)[j],
-            ),
-        }
-    }
-}
-
 /// The receiving side of one interaction: node `index` of a root's hierarchy.
 pub(super) struct ReceiverNode<'a> {
     pub root: &'a ElementRoot,
@@ -162,6 +144,22 @@ impl<'a> ReceiverNode<'a> {
             reflectance_deviation: node
                 .is_leaf()
                 .then(|| node_reflectance::deviation_of(h, index)),
+        }
+    }
+
+    /// Where the node's check point `j` (`rules::corner_probe_points`) casts its rays and
+    /// receives: the point itself, or off an extended face its stand-in, the closest point on
+    /// the face (`visibility_point`), as the node's cover holds it.
+    pub fn check_point(&self, j: usize) -> DVec3 {
+        // Extended roots are parallelograms: their covers hold a parallelogram's check points.
+        debug_assert!(self.cover.is_none() || self.root.shape == Shape::Parallelogram);
+        match &self.cover {
+            Some(c) => self.root.frame.point(c.check_point[j]),
+            None => visibility_point(
+                self.root,
+                &self.map,
+                corner_probe_points(self.root.shape)[j],
+            ),
         }
     }
 }
