@@ -241,9 +241,9 @@ impl<'s> ElementSource<'s> {
         // The source's radiosity at its rule points. A partly covered source's values are shifted
         // by a constant so that their alpha-weighted mean is its exact mean over the face
         // (`SourceElement::face_mean`): the points keep the variation, the constant carries the
-        // face's exact power with the exact form factor (near links; a far link's whole transfer is
-        // within the threshold, and it takes the rule's sum beyond its radii). The alpha weights alone miss the face's
-        // shape (a sliver of face along the element's border takes the weight of points well
+        // face's exact power with the exact form factor (near links; a far link's whole transfer
+        // is within the threshold, and it takes the rule's sum beyond its radii). The alpha
+        // weights alone miss the face's shape (a sliver of face along the element's border takes the weight of points well
         // inside, where the polynomial differs), and an inner node's polynomial is its projection
         // over the whole element, off-face extension included: unshifted, a Red Eclipse floor's
         // shot delivered 1.6x its unshot power.
@@ -561,8 +561,8 @@ impl Source for ElementSource<'_> {
     }
 
     /// Reciprocity: `A_r F_rs = A_s F_sr`. The receiver's rule points each take the form factor
-    /// of the source (`ElementSource::form_factor`; `seen_by_receiver`, summed with the rule's weights); the source's
-    /// rule points each take the exact form factor of the receiver (of the face inside it on an
+    /// of the source (`ElementSource::form_factor`; `seen_by_receiver`, summed with the rule's
+    /// weights); the source's rule points each take the exact form factor of the receiver (of the face inside it on an
     /// extended root). When the receiver's estimate is under `MISSED_EXCHANGE_RATIO` of the
     /// source's, the receiver's points missed the source: the unseen exchange
     /// (`A_s F_sr - A_r F_rs`, m^2) times the source's strength, over the receiver's area. Without

@@ -3,8 +3,9 @@
 //! link: the source's irradiance at the receiver's centre (its quadrature, scaled to the form
 //! factor of `ElementSource::form_factor`, or beyond the rule's radii the rule's own sum even on
 //! a partly covered element: `ElementSource::far_irradiance_at`), a constant over the root, with
-//! one shadow ray (to the source's centre) deciding its visibility. The oracle would accept a link of that size at the root whatever its visibility
-//! (`oracle.rs`: an error above the threshold is needed for any other verdict), so the
+//! one shadow ray (to the source's centre) deciding its visibility. The oracle would accept a
+//! link of that size at the root whatever its visibility (`oracle.rs`: an error above the
+//! threshold is needed for any other verdict), so the
 //! refinement's result is within the same budget; what it saves is the quadrature at every rule
 //! and check point of every far receiver, shot after shot, which made a level's cost grow like
 //! the square of its faces; and its one ray replaces the rays to every rule point (on a large city
@@ -99,8 +100,8 @@ pub(super) mod tests {
     /// `ElementSource::power_bound` against the radiosity's largest magnitude on a fine grid of
     /// the element times its area, for random coefficients at every order on both native shapes:
     /// never below it, and within four times it (a sum of magnitudes, not loose beyond that); with
-    /// one non-constant function beside the mean, within 5 % of the larger of its two signs' (each function's
-    /// own bound, not one margin for all: the former `6 x` fails this).
+    /// one non-constant function beside the mean, within 5 % of the larger of its two signs'
+    /// (each function's own bound, not one margin for all: the former `6 x` fails this).
     #[test]
     fn power_bound_holds_over_the_face() {
         use crate::solver::element_source::{ElementShot, SourceElement};
