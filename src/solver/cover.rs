@@ -184,9 +184,9 @@ pub(super) fn extend(h: &mut Hierarchy, root: &ElementRoot, rules: &CoverRules, 
 
 /// The cover of node `b` of `root`'s hierarchy: `None` for a native root. Every node of an
 /// extended root has one ([`extend`] runs after each split), so a missing one panics.
-pub fn of_node(h: &Hierarchy, root: &ElementRoot, b: usize) -> Option<NodeCover> {
+pub fn of_node<'h>(h: &'h Hierarchy, root: &ElementRoot, b: usize) -> Option<&'h NodeCover> {
     h.debug_assert_side_tables(root);
-    root.mask.as_ref().map(|_| h.covers[b])
+    root.mask.as_ref().map(|_| &h.covers[b])
 }
 
 /// The integral over the face inside a leaf of area `area` (its box's) of the function whose

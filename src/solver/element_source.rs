@@ -574,7 +574,7 @@ impl Source for ElementSource<'_> {
             // its neighbours on the face check.
             return None;
         }
-        let rings = partial_face_rings(r.root, &r.map, r.cover.as_ref());
+        let rings = partial_face_rings(r.root, &r.map, r.cover);
         let receiver = Emitter::new(r.root, &r.patch, rings.as_ref());
         let n = self.rule.len();
         let seen_by_source: f64 = self

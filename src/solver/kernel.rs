@@ -94,11 +94,11 @@ fn front_contour_integral(x: DVec3, n: DVec3, clipped: &[DVec3]) -> f64 {
         return 0.0;
     }
     // A polygon lying in the tangent plane subtends no projected solid angle.
-    let extent = clipped
-        .iter()
-        .map(|p| (*p - x).length())
-        .fold(0.0, f64::max);
-    if clipped.iter().all(|p| n.dot(*p - x) <= 1e-12 * extent) {
+    let (height, extent2) = clipped.iter().fold((f64::MIN, 0.0f64), |(h, e), p| {
+        let d = *p - x;
+        (h.max(n.dot(d)), e.max(d.length_squared()))
+    });
+    if height <= 1e-12 * extent2.sqrt() {
         return 0.0;
     }
     let mut sum = 0.0;

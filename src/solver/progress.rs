@@ -201,7 +201,12 @@ impl<'a> Reporter<'a> {
 
     /// The indirect phase foreseen (`indirect_forecast.rs`).
     pub(super) fn indirect_foreseen(&mut self, forecast: IndirectForecast) {
-        tracing::debug!(shots = forecast.shots, "indirect phase foreseen");
+        tracing::debug!(
+            shots = forecast.shots,
+            rays = self.visibility.rays_traced(),
+            seconds = self.start.elapsed().as_secs_f64(),
+            "indirect phase foreseen"
+        );
         self.eta.indirect_shots_foreseen(forecast.shots);
         self.foreseen = true;
     }

@@ -127,13 +127,13 @@ pub(super) struct ReceiverNode<'a> {
     pub depth: u8,
     pub patch: Patch,
     /// Extended roots: how the node covers the face.
-    pub cover: Option<NodeCover>,
+    pub cover: Option<&'a NodeCover>,
     /// A leaf whose reflectance varies: its deviation from its mean (see `reflectance_error`).
     pub reflectance_deviation: Option<Rgb>,
 }
 
 impl<'a> ReceiverNode<'a> {
-    pub fn new(root: &'a ElementRoot, h: &Hierarchy, index: usize) -> Self {
+    pub fn new(root: &'a ElementRoot, h: &'a Hierarchy, index: usize) -> Self {
         let node = h.nodes[index];
         ReceiverNode {
             root,

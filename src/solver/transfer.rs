@@ -73,7 +73,7 @@ pub(super) fn receive(
     };
     for k in 0..out.points {
         let x = match rule.get(k) {
-            Some(q) => receiving_point(root, &receiver.patch, receiver.cover.as_ref(), k, q.st),
+            Some(q) => receiving_point(root, &receiver.patch, receiver.cover, k, q.st),
             None => receiver.check_point(k - nk),
         };
         let Some(p) = source.irradiance_at(x, root.normal, ignore, rays) else {
