@@ -284,7 +284,7 @@ pub fn face_integral_by(
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::domain::{ExtendedDomain, Shape};
     use crate::solver::quadrature::{rule, zones_of_influence};
@@ -301,7 +301,7 @@ mod tests {
 
     /// The unit square with a centred square hole of side `h` as a domain (its own
     /// parallelogram is the unit square).
-    fn holed(h: f64) -> FaceMask {
+    pub(in crate::solver) fn holed(h: f64) -> FaceMask {
         let v = |x: f64, y: f64| DVec2::new(x, y);
         let (a, b) = (0.5 - h / 2.0, 0.5 + h / 2.0);
         let outer = vec![v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)];

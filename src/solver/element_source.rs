@@ -609,3 +609,84 @@ impl Source for ElementSource<'_> {
 /// (the Kenney building: 3.3 % nrms; 16 rays still miss the strip of sky it sees, 32 find it:
 /// 2.7 %; 64 leave a margin, for 2-25 % more rays in the reference scenes).
 const SPREAD_RAYS: usize = 64;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::Shape;
+    use crate::solver::basis::Basis;
+    use crate::solver::element::tests::parallelogram_root;
+
+    /// A far link on a partly covered source (a unit square with a centred hole of half its side,
+    /// shooting as one element with its face's rings) takes the rule's sum for the form factor
+    /// beyond the rule's radii, where a near link takes the exact contour integral of the rings:
+    /// the far link's irradiance over the near link's is the rule's sum over the exact form
+    /// factor, which differ there. Nearer than the radii both take the exact one.
+    #[test]
+    fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
+        let order = 2;
+        let (bases, rules) = (Bases::new(order), Rules::new(order));
+        let basis = Basis::new(Shape::Parallelogram, order);
+        let n = basis.len();
+        let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
+        let mask = crate::solver::cover::tests::holed(0.5);
+        let cover = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
+        assert_eq!(cover.status, ElementStatus::Partial);
+        source.mask = Some(mask);
+        source.face_area_m2 = 0.75;
+        source.exitance = [1.0; 3];
+        let roots = [source];
+        let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+        coeffs[0] = roots[0].exitance;
+        let element = SourceElement::root(&roots[0], coeffs, n, Some(cover), None);
+        assert!(
+            element.rings.is_some(),
+            "a partly covered element has rings"
+        );
+        let hierarchy = Hierarchy::new(n);
+        let visibility = Visibility::new(Vec::new(), 30.0);
+        let shot = ElementShot {
+            roots: &roots,
+            bases: &bases,
+            rules: &rules,
+            visibility: &visibility,
+            source_root: 0,
+            source_hierarchy: &hierarchy,
+            direct: true,
+            source_face_means: None,
+            min_edge: 1e-3,
+        };
+        let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+        let ignore = source.ignored_faces(1);
+        let (down, radii) = (-DVec3::Z, rules.form_factor_radii);
+        let radius = 0.5f64.sqrt();
+        // Off the centre's axis, so that the hole does not sit symmetrically under the point.
+        let above = |z: f64| DVec3::new(0.8, 0.3, z);
+        let ratio = |x: DVec3| {
+            let far = source.far_irradiance_at(x, down, ignore).expect("in front");
+            let near = source
+                .irradiance_at(x, down, ignore, Rays::Trace)
+                .expect("in front")
+                .e;
+            far[0] / near[0]
+        };
+        let x = above(radii * radius * 1.05);
+        let (rule, exact) = (
+            source.rule_form_factor(x, down),
+            source.form_factor(x, down),
+        );
+        assert!(
+            (rule / exact - 1.0).abs() > 1e-4,
+            "the rule {rule} and the rings {exact} must differ for the check to mean anything"
+        );
+        let r = ratio(x);
+        assert!(
+            (r - rule / exact).abs() < 1e-12,
+            "{r} against {}",
+            rule / exact
+        );
+        // Nearer than the radii, the far link takes the rings' exact form factor too.
+        let r = ratio(above(radii * radius * 0.9));
+        assert!((r - 1.0).abs() < 1e-12, "{r}");
+    }
+}
