@@ -611,11 +611,32 @@ impl Source for ElementSource<'_> {
 const SPREAD_RAYS: usize = 64;
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::domain::Shape;
     use crate::solver::basis::Basis;
     use crate::solver::element::tests::parallelogram_root;
+
+    /// A shot of `roots[0]` (direct or not), with no stored face means and a 1 mm smallest edge.
+    pub(in crate::solver) fn shot_of_first_root<'a>(
+        roots: &'a [ElementRoot],
+        (bases, rules): (&'a Bases, &'a Rules),
+        visibility: &'a Visibility,
+        hierarchy: &'a Hierarchy,
+        direct: bool,
+    ) -> ElementShot<'a> {
+        ElementShot {
+            roots,
+            bases,
+            rules,
+            visibility,
+            source_root: 0,
+            source_hierarchy: hierarchy,
+            direct,
+            source_face_means: None,
+            min_edge: 1e-3,
+        }
+    }
 
     /// A far link on a partly covered source (a unit square with a centred hole of half its side,
     /// shooting as one element with its face's rings) takes the rule's sum for the form factor
@@ -645,17 +666,7 @@ mod tests {
         );
         let hierarchy = Hierarchy::new(n);
         let visibility = Visibility::new(Vec::new(), 30.0);
-        let shot = ElementShot {
-            roots: &roots,
-            bases: &bases,
-            rules: &rules,
-            visibility: &visibility,
-            source_root: 0,
-            source_hierarchy: &hierarchy,
-            direct: true,
-            source_face_means: None,
-            min_edge: 1e-3,
-        };
+        let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
         let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
         let ignore = source.ignored_faces(1);
         let (down, radii) = (-DVec3::Z, rules.form_factor_radii);

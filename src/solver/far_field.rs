@@ -104,7 +104,8 @@ pub(super) mod tests {
     /// (each function's own bound, not one margin for all: the former `6 x` fails this).
     #[test]
     fn power_bound_holds_over_the_face() {
-        use crate::solver::element_source::{ElementShot, SourceElement};
+        use crate::solver::element_source::tests::shot_of_first_root;
+        use crate::solver::element_source::SourceElement;
         use crate::solver::hierarchy::Hierarchy;
         use crate::solver::refine::Shot;
         use crate::solver::rules::{Bases, Rules};
@@ -141,17 +142,13 @@ pub(super) mod tests {
                         ([1.0; 3], 0.0)
                     };
                     let element = SourceElement::root(&roots[0], coeffs, n, None, None);
-                    let shot = ElementShot {
-                        roots: &roots,
-                        bases: &bases,
-                        rules: &rules,
-                        visibility: &visibility,
-                        source_root: 0,
-                        source_hierarchy: &hierarchy,
-                        direct: false,
-                        source_face_means: None,
-                        min_edge: 1e-3,
-                    };
+                    let shot = shot_of_first_root(
+                        &roots,
+                        (&bases, &rules),
+                        &visibility,
+                        &hierarchy,
+                        false,
+                    );
                     let Some(source) = shot.source(&element, weight) else {
                         continue;
                     };
@@ -237,7 +234,8 @@ pub(super) mod tests {
         blocked: bool,
         f: impl FnOnce(&ElementSource, &ElementRoot, &Visibility) -> R,
     ) -> R {
-        use crate::solver::element_source::{ElementShot, SourceElement};
+        use crate::solver::element_source::tests::shot_of_first_root;
+        use crate::solver::element_source::SourceElement;
         use crate::solver::hierarchy::Hierarchy;
         use crate::solver::refine::Shot;
         use crate::solver::rules::{Bases, Rules};
@@ -264,17 +262,7 @@ pub(super) mod tests {
         } else {
             Visibility::new(Vec::new(), 30.0)
         };
-        let shot = ElementShot {
-            roots: &roots,
-            bases: &bases,
-            rules: &rules,
-            visibility: &visibility,
-            source_root: 0,
-            source_hierarchy: &hierarchy,
-            direct: true,
-            source_face_means: None,
-            min_edge: 1e-3,
-        };
+        let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
         let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
         f(&source, &roots[1], &visibility)
     }
