@@ -243,10 +243,10 @@ impl<'s> ElementSource<'s> {
         // (`SourceElement::face_mean`): the points keep the variation, the constant carries the
         // face's exact power with the exact form factor (near links; a far link's whole transfer
         // is within the threshold, and it takes the rule's sum beyond its radii). The alpha
-        // weights alone miss the face's shape (a sliver of face along the element's border takes the weight of points well
-        // inside, where the polynomial differs), and an inner node's polynomial is its projection
-        // over the whole element, off-face extension included: unshifted, a Red Eclipse floor's
-        // shot delivered 1.6x its unshot power.
+        // weights alone miss the face's shape (a sliver of face along the element's border takes
+        // the weight of points well inside, where the polynomial differs), and an inner node's
+        // polynomial is its projection over the whole element, off-face extension included:
+        // unshifted, a Red Eclipse floor's shot delivered 1.6x its unshot power.
         let source_mean = src.face_mean;
         let mut radiosity = [[0.0f64; 3]; POINTS];
         for (l, b) in radiosity.iter_mut().take(rule.len()).enumerate() {
@@ -562,12 +562,12 @@ impl Source for ElementSource<'_> {
 
     /// Reciprocity: `A_r F_rs = A_s F_sr`. The receiver's rule points each take the form factor
     /// of the source (`ElementSource::form_factor`; `seen_by_receiver`, summed with the rule's
-    /// weights); the source's rule points each take the exact form factor of the receiver (of the face inside it on an
-    /// extended root). When the receiver's estimate is under `MISSED_EXCHANGE_RATIO` of the
-    /// source's, the receiver's points missed the source: the unseen exchange
-    /// (`A_s F_sr - A_r F_rs`, m^2) times the source's strength, over the receiver's area. Without
-    /// it, a slope meeting a wall delivers nothing to the wall's root if the wall's nine points
-    /// all lie behind the slope's plane.
+    /// weights); the source's rule points each take the exact form factor of the receiver (of
+    /// the face inside it on an extended root). When the receiver's estimate is under
+    /// `MISSED_EXCHANGE_RATIO` of the source's, the receiver's points missed the source: the
+    /// unseen exchange (`A_s F_sr - A_r F_rs`, m^2) times the source's strength, over the
+    /// receiver's area. Without it, a slope meeting a wall delivers nothing to the wall's root if
+    /// the wall's nine points all lie behind the slope's plane.
     fn missed_by(&self, r: &ReceiverNode, seen_by_receiver: f64) -> Option<f64> {
         if r.cover.is_some_and(|c| c.status == ElementStatus::Empty) {
             // An empty receiver has no face inside: it receives only for its stand-ins, which

@@ -5,11 +5,11 @@
 //! a partly covered element: `ElementSource::far_irradiance_at`), a constant over the root, with
 //! one shadow ray (to the source's centre) deciding its visibility. The oracle would accept a
 //! link of that size at the root whatever its visibility (`oracle.rs`: an error above the
-//! threshold is needed for any other verdict), so the
-//! refinement's result is within the same budget; what it saves is the quadrature at every rule
-//! and check point of every far receiver, shot after shot, which made a level's cost grow like
-//! the square of its faces; and its one ray replaces the rays to every rule point (on a large city
-//! the far links are most of the indirect phase: `a_far_link_takes_the_whole_source_on_one_ray`).
+//! threshold is needed for any other verdict), so the refinement's result is within the same
+//! budget; what it saves is the quadrature at every rule and check point of every far receiver,
+//! shot after shot, which made a level's cost grow like the square of its faces; and its one ray
+//! replaces the rays to every rule point (on a large city the far links are most of the indirect
+//! phase: `a_far_link_takes_the_whole_source_on_one_ray`).
 //!
 //! The bound: a Lambertian source's power into a cone of half-angle `theta` is at most
 //! `sin^2 theta` of it, and a sphere of radius `r` seen from distance `d` subtends

@@ -153,7 +153,7 @@ impl<'a> ReceiverNode<'a> {
     pub fn check_point(&self, j: usize) -> DVec3 {
         // Extended roots are parallelograms: their covers hold a parallelogram's check points.
         debug_assert!(self.cover.is_none() || self.root.shape == Shape::Parallelogram);
-        match &self.cover {
+        match self.cover {
             Some(c) => self.root.frame.point(c.check_point[j]),
             None => visibility_point(
                 self.root,
