@@ -515,6 +515,12 @@ fn shoot(
         reporter.indirect_foreseen(f);
     }
     let returns_units = CostUnits::new(returns);
+    // What the shot costs, for `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md,
+    // "What a shot costs against the power it sends").
+    let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
+        let (rays, links) = (ctx.visibility.rays_traced(), ctx.links.load(Ordering::Relaxed));
+        (Instant::now(), rays, links)
+    });
     reporter.shot_started(
         iterations,
         ShotPlan {
@@ -581,6 +587,19 @@ fn shoot(
             )
     };
     with_reports(work, &mut |c| reporter.within_shot(c, receivers));
+    if let Some((start, rays, links)) = cost_before {
+        tracing::trace!(
+            direct,
+            power,
+            received = received.iter().filter(|&&p| p > 0.0).sum::<f64>(),
+            threshold = ctx.threshold,
+            receivers,
+            seconds = start.elapsed().as_secs_f64(),
+            rays = ctx.visibility.rays_traced() - rays,
+            links = ctx.links.load(Ordering::Relaxed) - links,
+            "shot cost"
+        );
+    }
     hierarchies[shooter] = source_h;
     !interrupted.load(Ordering::Relaxed)
 }
