@@ -518,7 +518,10 @@ fn shoot(
     // What the shot costs, for `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md,
     // "What a shot costs against the power it sends").
     let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
-        let (rays, links) = (ctx.visibility.rays_traced(), ctx.links.load(Ordering::Relaxed));
+        let (rays, links) = (
+            ctx.visibility.rays_traced(),
+            ctx.links.load(Ordering::Relaxed),
+        );
         (Instant::now(), rays, links)
     });
     reporter.shot_started(
