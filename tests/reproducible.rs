@@ -1,6 +1,7 @@
-//! A bake is reproducible: two solves of one scene with the same settings write the same bytes
-//! to every output a pipeline caches or ships (lightmap pages, `atlas.png`, `preview.png`,
-//! `scene.glb`); `result.json` and `convergence.csv` differ only by their seconds.
+//! A bake is reproducible: two solves of one scene with the same settings and no time budget
+//! write the same bytes to every output a pipeline caches or ships (lightmap pages, `atlas.png`,
+//! `preview.png`, `scene.glb`); `result.json` and `convergence.csv` also carry seconds and the
+//! process's peak memory, which are not compared.
 
 use std::path::Path;
 

@@ -279,7 +279,8 @@ pub fn page_file_name(n: usize) -> String {
 
 /// How the lightmap pages are encoded: the crate's fast lossless default (RLE, 64 x 64 tiles),
 /// the tiles in increasing order. Its default leaves the order to the threads that compress
-/// them, so two bakes of one solution differed byte for byte (`tests::exr_pages_keep_their_tile_order`).
+/// them, so two bakes of one solution differed byte for byte
+/// (`tests::exr_pages_keep_their_tile_order`).
 const EXR_ENCODING: exr::prelude::Encoding = exr::prelude::Encoding {
     line_order: exr::prelude::LineOrder::Increasing,
     ..exr::prelude::Encoding::FAST_LOSSLESS

@@ -515,8 +515,9 @@ fn shoot(
         reporter.indirect_foreseen(f);
     }
     let returns_units = CostUnits::new(returns);
-    // What the shot costs, for `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md,
-    // "What a shot costs against the power it sends").
+    // What the shot's loop over its receivers costs (its plan above not counted), for
+    // `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md, "What a shot costs
+    // against the power it sends").
     let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
         let (rays, links) = (
             ctx.visibility.rays_traced(),
