@@ -503,10 +503,17 @@ impl Source for ElementSource<'_> {
         if f <= 0.0 {
             return None;
         }
-        if rays == Rays::AllPass {
-            return Some(self.with_verdicts(x, n, f, u64::MAX));
-        }
         let visibility = self.shot.visibility;
+        match rays {
+            Rays::AllPass => return Some(self.with_verdicts(x, n, f, u64::MAX)),
+            Rays::Centre => {
+                let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
+                visibility.count_rays(1);
+                let seen = visibility.visible_from(x, &[centre], ignore) & 1 == 1;
+                return Some(self.with_verdicts(x, n, f, if seen { u64::MAX } else { 0 }));
+            }
+            Rays::Trace => {}
+        }
         // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the
         // others with the same test, so it reads the verdicts in packing order).
         let mut targets = [DVec3::ZERO; POINTS];

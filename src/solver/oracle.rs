@@ -7,7 +7,8 @@
 //! (rays between the corners, then spread over both elements); the exchange the receiver's
 //! points missed (reciprocity); the reflectance a textured leaf misplaces; partial visibility
 //! (the whole unoccluded transfer is at stake); a partly covered source's coverage error. A link
-//! whose rays were taken as passing (`Rays::AllPass`) casts no ray to check the verdict.
+//! whose rays were taken as passing (`Rays::AllPass`), or cast one per point (`Rays::Centre`),
+//! casts no ray to check the verdict.
 //!
 //! Invariant: a verdict other than `Accept` only when the error in transferred power exceeds the
 //! threshold; `Capped` only when neither side may be split.

@@ -84,8 +84,9 @@ impl ShotContext<'_> {
             .is_some_and(|d| std::time::Instant::now() >= d)
     }
 
-    /// Transfers `part` of `shot` to receiver node `b` of `rcv` (root `rcv_index`), refining as
-    /// the oracle asks.
+    /// Transfers `part` of `shot` to receiver node `b` of `rcv` (root `rcv_index`), its shadow
+    /// rays decided as `rays` says, refining as the oracle asks.
+    #[allow(clippy::too_many_arguments)]
     pub fn transfer<S: Shot>(
         &self,
         shot: &S,
@@ -94,6 +95,7 @@ impl ShotContext<'_> {
         rcv: &mut Hierarchy,
         b: usize,
         record: &mut ShotRecord<S::Part>,
+        rays: Rays,
     ) {
         if self.node_sums {
             // Recorded links name their sources by the splits that lead to them from `part`.
@@ -101,7 +103,7 @@ impl ShotContext<'_> {
         }
         let link = Link {
             path: SourcePath::ROOT,
-            rays: Rays::Trace,
+            rays,
         };
         self.transfer_at(shot, part, link, rcv_index, rcv, b, record);
     }
@@ -154,10 +156,15 @@ impl ShotContext<'_> {
             }
             Verdict::SplitReceiver => {
                 let first = self.first_child(rcv, b, rroot);
-                // The node's children trace: rays taken as passing stand for one level.
+                // The node's children trace: rays taken as passing stand for one level. A link on
+                // one ray per point stays so: its children carry less still.
                 let link = Link {
                     path: link.path,
-                    rays: Rays::Trace,
+                    rays: if rays == Rays::Centre {
+                        Rays::Centre
+                    } else {
+                        Rays::Trace
+                    },
                 };
                 for c in 0..4 {
                     self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);

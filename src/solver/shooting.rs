@@ -20,7 +20,7 @@ use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
 use super::refine::{Shot, ShotContext};
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
-use super::source::LightShot;
+use super::source::{LightShot, Rays};
 use super::visibility::Visibility;
 use super::{
     mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason,
@@ -315,7 +315,15 @@ fn shoot_lights(
                     return;
                 }
                 let root = &ctx.roots[ri];
-                ctx.transfer(&shot, &(), ri, h, 0, &mut ShotRecord::default());
+                ctx.transfer(
+                    &shot,
+                    &(),
+                    ri,
+                    h,
+                    0,
+                    &mut ShotRecord::default(),
+                    Rays::Trace,
+                );
                 if h.touched {
                     h.push_pull(ctx.bases.of(root.shape), root.rho, true);
                 }
@@ -570,7 +578,18 @@ fn shoot(
                         }
                     } else {
                         let mut record = ShotRecord::default();
-                        ctx.transfer(&shot, &root_element, ri, h, 0, &mut record);
+                        let rays = if !direct
+                            && centre_rays_suffice(
+                                received[ri],
+                                ctx.threshold,
+                                &ctx.spheres[shooter],
+                                &ctx.spheres[ri],
+                            ) {
+                            Rays::Centre
+                        } else {
+                            Rays::Trace
+                        };
+                        ctx.transfer(&shot, &root_element, ri, h, 0, &mut record, rays);
                         if ctx.node_sums {
                             ctx.refine_by_node_sums(&shot, record, ri, h);
                         }
@@ -606,6 +625,22 @@ fn shoot(
     }
     hierarchies[shooter] = source_h;
     !interrupted.load(Ordering::Relaxed)
+}
+
+/// The largest share of the oracle's threshold a near receiver may get from an indirect shot, with
+/// no occluder, and still have its links decide visibility by one ray per point
+/// ([`centre_rays_suffice`]; docs/performance-notes.md, "What a shot costs against the power it
+/// sends").
+const CENTRE_RAY_SHARE: f64 = 1.0 / 16.0;
+
+/// Whether a near receiver's links may decide their visibility by one ray per receiver point
+/// ([`Rays::Centre`]): it would get at most [`CENTRE_RAY_SHARE`] of the oracle's `threshold` with
+/// no occluder (`received`, the plan's estimate) and its bounding sphere is apart from the
+/// shooter's (where they touch, the estimate from five points misses most of the transfer).
+/// `tests::centre_rays_need_a_small_share_and_no_contact`.
+fn centre_rays_suffice(received: f64, threshold: f64, shooter: &Sphere, receiver: &Sphere) -> bool {
+    let apart = shooter.centre.distance(receiver.centre) > shooter.radius + receiver.radius;
+    apart && received <= CENTRE_RAY_SHARE * threshold
 }
 
 /// The share of root `shooter` that root `ri` sees, from a ray per target: from its link point
@@ -713,4 +748,46 @@ fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
     let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
     let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
     b_in_front_of_a && a_in_front_of_b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One ray per point only for a receiver apart from the shooter that would get at most the
+    /// share of the threshold: touching spheres, or a larger share, trace every sample.
+    #[test]
+    fn centre_rays_need_a_small_share_and_no_contact() {
+        let sphere = |x: f64| Sphere {
+            centre: DVec3::new(x, 0.0, 0.0),
+            radius: 1.0,
+        };
+        let (threshold, shooter) = (1.0, sphere(0.0));
+        let small = CENTRE_RAY_SHARE * threshold;
+        assert!(centre_rays_suffice(
+            small,
+            threshold,
+            &shooter,
+            &sphere(2.5)
+        ));
+        assert!(centre_rays_suffice(0.0, threshold, &shooter, &sphere(2.5)));
+        assert!(!centre_rays_suffice(
+            small,
+            threshold,
+            &shooter,
+            &sphere(1.5)
+        ));
+        assert!(!centre_rays_suffice(
+            small,
+            threshold,
+            &shooter,
+            &sphere(2.0)
+        ));
+        assert!(!centre_rays_suffice(
+            1.01 * small,
+            threshold,
+            &shooter,
+            &sphere(2.5)
+        ));
+    }
 }

@@ -36,6 +36,12 @@ pub(super) enum Rays {
     /// native child, and the source's parts if the oracle splits the source there (not the
     /// child's children: they trace). No ray checks the oracle's verdict either.
     AllPass,
+    /// One ray per receiver point, to the source's centre, its verdict standing for every sample
+    /// of the source (as a far link's one ray does): an indirect shot's link to a receiver apart
+    /// from the shooter that would get a small share of the threshold with no occluder
+    /// (`shooting::centre_rays_suffice`), and the links it is refined into. No ray checks the
+    /// oracle's verdict.
+    Centre,
 }
 
 /// What a source delivers at one receiver point.

@@ -37,7 +37,8 @@ pub(super) struct Received {
     pub touching: u64,
     /// Rays were traced from every point (rule and check points), and all passed. Never after
     /// [`Rays::AllPass`]: a link taken as seen whole is not passed on so again (the rays traced
-    /// from a node sample what its children see, not its grandchildren).
+    /// from a node sample what its children see, not its grandchildren); nor after
+    /// [`Rays::Centre`] (one ray per point does not sample the source).
     pub all_pass: bool,
 }
 
@@ -150,5 +151,33 @@ mod tests {
         assert_eq!(taken.dh, open.dh);
         assert!(taken.any_visible && !taken.any_blocked);
         assert!(!taken.all_pass, "a taken verdict is not passed on");
+    }
+
+    /// One ray per point, to the source's centre: as many rays as points; with nothing in the
+    /// way the same numbers as every sample traced; behind the blocker (it hides the source's
+    /// centre from the receiver's middle, not from its corners) each point gets all or nothing.
+    #[test]
+    fn centre_rays_trace_one_ray_per_point_and_give_all_or_nothing() {
+        let (open, _) = received(false, Rays::Trace);
+        let (centre, rays) = received(false, Rays::Centre);
+        assert_eq!(rays, centre.points as u64);
+        assert_eq!(centre.e[..centre.points], open.e[..open.points]);
+        assert_eq!(centre.dh, open.dh);
+        assert!(
+            !centre.all_pass,
+            "one ray per point is not passed on as seen whole"
+        );
+        let (shadowed, _) = received(true, Rays::Centre);
+        let (mut dark, mut lit) = (0, 0);
+        for k in 0..shadowed.points {
+            if shadowed.e[k] == [0.0; 3] {
+                dark += 1;
+            } else {
+                assert_eq!(shadowed.e[k], open.e[k], "point {k}");
+                lit += 1;
+            }
+        }
+        assert!(dark > 0 && lit > 0, "{dark} dark, {lit} lit");
+        assert!(shadowed.any_visible && shadowed.any_blocked);
     }
 }
