@@ -2,10 +2,10 @@
 //! unshot radiosity it shoots), [`ElementShot`] (one shot's shooter: it makes an element's
 //! children, computed by push when they are not stored) and [`ElementSource`], an element as one
 //! receiver sees it: the quadrature of its radiosity over its rule's points, one shadow ray per
-//! point (one in all for a far link), scaled to the exact form factor (or, beyond the distance
-//! where the rule's own sum is within `1e-4` of the head-on value, `kernel::rule_suffices_radii`,
-//! to that sum; a far link takes the sum there on a partly covered element too), and the
-//! reciprocity check.
+//! point (one in all for a far link, one per receiver point on [`Rays::Centre`]), scaled to the
+//! exact form factor (or, beyond the distance where the rule's own sum is within `1e-4` of the
+//! head-on value, `kernel::rule_suffices_radii`, to that sum; a far link takes the sum there on a
+//! partly covered element too), and the reciprocity check.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -208,8 +208,8 @@ pub(super) struct ElementSource<'s> {
     /// [`Basis::max_abs`](super::basis::Basis::max_abs)), weighted likewise.
     amplitude_bound: f64,
     strength: f64,
-    /// Where a far link's one shadow ray ends, computed when a far link first needs it
-    /// ([`ElementSource::far_irradiance_at`]).
+    /// Where a far link's one shadow ray ends (and each of a [`Rays::Centre`] link's), computed
+    /// when first needed ([`ElementSource::far_irradiance_at`]).
     centre_stand_in: OnceCell<DVec3>,
     /// The corners' stand-ins, computed when a ray first needs them.
     corner_stand_ins: [OnceCell<DVec3>; 5],
@@ -506,6 +506,10 @@ impl Source for ElementSource<'_> {
         let visibility = self.shot.visibility;
         match rays {
             Rays::AllPass => return Some(self.with_verdicts(x, n, f, u64::MAX)),
+            // No rule point emits: nothing to see (as `far_irradiance_at`).
+            Rays::Centre if self.alpha_weight <= 0.0 => {
+                return Some(self.with_verdicts(x, n, f, 0));
+            }
             Rays::Centre => {
                 let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
                 visibility.count_rays(1);

@@ -39,7 +39,8 @@ pub(super) enum Verdict {
 
 /// Evaluates the interaction of `source` with `receiver`, which received `received`; `weight`:
 /// the oracle's channel weights at the receiver; `rays`: how the transfer decided its shadow
-/// rays (taken as all passing, no ray checks the verdict either).
+/// rays (taken as all passing, or one per point to the source's centre: no ray checks the
+/// verdict either).
 pub(super) fn evaluate(
     ctx: &ShotContext,
     source: &impl Source,

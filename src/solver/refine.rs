@@ -111,7 +111,8 @@ impl ShotContext<'_> {
     /// [`ShotContext::transfer`] of the part at `link.path` under the part the record started
     /// from, its shadow rays decided as `link.rays` says, on a fully covered or native node (an
     /// extended root's other nodes trace), and so those of the source's parts if the oracle
-    /// splits the source; the node's children trace if it splits the node.
+    /// splits the source; the node's children trace if it splits the node (on one ray per point,
+    /// [`Rays::Centre`], they keep it).
     #[allow(clippy::too_many_arguments)]
     pub fn transfer_at<S: Shot>(
         &self,

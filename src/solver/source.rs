@@ -39,8 +39,9 @@ pub(super) enum Rays {
     /// One ray per receiver point, to the source's centre, its verdict standing for every sample
     /// of the source (as a far link's one ray does): an indirect shot's link to a receiver apart
     /// from the shooter that would get a small share of the threshold with no occluder
-    /// (`shooting::centre_rays_suffice`), and the links it is refined into. No ray checks the
-    /// oracle's verdict.
+    /// (`shooting::centre_rays_suffice`), and the links the oracle refines it into (the node-sum
+    /// check re-sends its links tracing). No ray checks the oracle's verdict
+    /// (`transfer::tests::centre_rays_trace_one_ray_per_point_and_give_all_or_nothing`).
     Centre,
 }
 
@@ -88,7 +89,8 @@ pub(super) trait Source {
     /// What the source delivers at receiver point `x` (normal `n`), its shadow rays ignoring the
     /// faces `ignore` ([`Source::ignored_faces`]); `None` when nothing reaches it unoccluded
     /// (behind the source, outside a spot's cone).
-    /// `rays`: trace the shadow rays, or take them all as passing ([`Rays`]).
+    /// `rays`: trace the shadow rays, take them all as passing, or cast one per point to the
+    /// source's centre ([`Rays`]).
     fn irradiance_at(
         &self,
         x: DVec3,
