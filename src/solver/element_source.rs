@@ -472,18 +472,27 @@ impl<'s> ElementSource<'s> {
         if f <= 0.0 {
             return None;
         }
-        if self.alpha_weight <= 0.0 {
-            // No rule point emits: nothing to see.
-            return Some([0.0; 3]);
-        }
-        let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
-        let visibility = self.shot.visibility;
-        visibility.count_rays(1);
-        if visibility.visible_from(x, &[centre], ignore) & 1 == 0 {
+        if self.centre_verdict(x, ignore) == 0 {
             // What `with_verdicts` gives with no point seen.
             return Some([0.0; 3]);
         }
         Some(self.with_verdicts(x, n, f, u64::MAX).e)
+    }
+
+    /// The verdicts of every rule point from `x` as one shadow ray to the source's centre
+    /// decides them: all seen (`u64::MAX`) or none (0, without a ray when no rule point emits).
+    fn centre_verdict(&self, x: DVec3, ignore: [u32; 2]) -> u64 {
+        if self.alpha_weight <= 0.0 {
+            return 0;
+        }
+        let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
+        let visibility = self.shot.visibility;
+        visibility.count_rays(1);
+        if visibility.visible_from(x, &[centre], ignore) & 1 == 1 {
+            u64::MAX
+        } else {
+            0
+        }
     }
 }
 
@@ -503,21 +512,14 @@ impl Source for ElementSource<'_> {
         if f <= 0.0 {
             return None;
         }
-        let visibility = self.shot.visibility;
         match rays {
             Rays::AllPass => return Some(self.with_verdicts(x, n, f, u64::MAX)),
-            // No rule point emits: nothing to see (as `far_irradiance_at`).
-            Rays::Centre if self.alpha_weight <= 0.0 => {
-                return Some(self.with_verdicts(x, n, f, 0));
-            }
             Rays::Centre => {
-                let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
-                visibility.count_rays(1);
-                let seen = visibility.visible_from(x, &[centre], ignore) & 1 == 1;
-                return Some(self.with_verdicts(x, n, f, if seen { u64::MAX } else { 0 }));
+                return Some(self.with_verdicts(x, n, f, self.centre_verdict(x, ignore)));
             }
             Rays::Trace => {}
         }
+        let visibility = self.shot.visibility;
         // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the
         // others with the same test, so it reads the verdicts in packing order).
         let mut targets = [DVec3::ZERO; POINTS];
