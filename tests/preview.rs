@@ -9,7 +9,7 @@ use wavrad::scene::gltf_writer::SceneBuilder;
 use wavrad::scene::Camera;
 
 mod common;
-use common::cli::wavrad;
+use common::cli::solve_ok;
 
 /// An 8-bit RGB PNG: width, height, bytes.
 fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
@@ -24,20 +24,7 @@ fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
 }
 
 fn solve(scene: &Path, out: &Path) -> Value {
-    let run = wavrad(&[
-        "solve",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--order",
-        "1",
-    ]);
-    assert_eq!(
-        run.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    solve_ok(scene, out, &["--order", "1"]);
     serde_json::from_slice(&std::fs::read(out.join("result.json")).unwrap()).unwrap()
 }
 

@@ -6,24 +6,10 @@
 use std::path::Path;
 
 mod common;
-use common::cli::wavrad;
+use common::cli::solve_ok;
 
 fn solve(scene: &Path, out: &Path) {
-    let run = wavrad(&[
-        "solve",
-        scene.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--order",
-        "1",
-        "--tolerance",
-        "1e-5",
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    solve_ok(scene, out, &["--order", "1", "--tolerance", "1e-5"]);
 }
 
 /// The Kenney building (holed faces, a lightmap page of many tiles) solved twice: before its
