@@ -1,15 +1,17 @@
 //! The shooting loop (docs/design.md section 5.1) as named steps: shoot the lights (punctual lights first;
-//! what they deliver counts as emitted), then report, pick the shooter (the next emitter's
-//! direct shot, else the root with the most unshot power), shoot (every receiver in parallel,
-//! the shooter read-only), clear what was shot; until the unshot ratio reaches the target.
+//! what they deliver counts as emitted), then report, pick the shooters (the next emitter's
+//! direct shot alone, else a pass of the root with the most unshot power and roots of at least
+//! half its power that face none of the pass's others), shoot (every receiver in parallel, the
+//! shooters read-only), clear what was shot; until the unshot ratio reaches the target.
 //!
-//! Invariant: after every shot each root's unshot power (`unshot`) is up to date, every `dh` is
-//! clear, and `u` holds exactly what is left to shoot (a direct shot removes only the emission).
+//! Invariant: after every pass each root's unshot power (`unshot`) is up to date, every `dh` is
+//! clear, and `u` holds exactly what is left to shoot (a direct shot removes only the emission);
+//! no root of a pass receives from another of it.
 
 use super::basis::MAX_FUNCTIONS;
 use super::cover::{self, face_integral};
 use super::element::Sphere;
-use super::element_source::{ElementShot, SourceElement};
+use super::element_source::{ElementShot, ElementSource, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field;
 use super::hierarchy::Hierarchy;
@@ -142,18 +144,28 @@ pub fn solve(
         emitted_total
     };
     let mut stop = StopReason::Converged;
+    // Shots of the last pass (the first row stands for the start).
+    let mut pass_shots = 1;
     loop {
         let ratio = unshot_ratio(&unshot, ratio_base);
         let elements = hierarchies.iter().map(leaf_count).sum();
         let progress = reporter.after_shot(iterations, ratio, ratio_base, elements);
-        convergence.push(progress);
+        // One row per shot: the shots of a pass end together.
+        convergence.extend((0..pass_shots).rev().map(|before| Progress {
+            iterations: iterations - before,
+            ..progress
+        }));
         if let Some(reason) = must_stop(&progress, &params, cancel) {
             stop = reason;
             break;
         }
-        let Some((shooter, direct)) =
-            pick_shooter(&mut direct_iter, &unshot, ratio, params.target_unshot)
-        else {
+        let Some((shooters, direct)) = pick_shooters(
+            &mut direct_iter,
+            &unshot,
+            (ratio, params.target_unshot),
+            (&roots, &spheres),
+            facing_eps,
+        ) else {
             break;
         };
         let kind = if direct {
@@ -165,7 +177,7 @@ pub fn solve(
         };
         let completed = shoot(
             &ctx,
-            (shooter, kind),
+            (&shooters, kind),
             facing_eps,
             params.target_unshot,
             &mut hierarchies,
@@ -176,11 +188,15 @@ pub fn solve(
             // The budget ended within the shot: the receivers it reached keep their light, the
             // shooter keeps its unshot power (the ratio stays an upper bound), and the check at
             // the top of the loop stops the solve.
+            pass_shots = 1;
             continue;
         }
-        clear_unshot(&mut hierarchies[shooter], &roots[shooter], direct);
-        unshot[shooter] = unshot_power(&hierarchies[shooter], &roots[shooter]);
-        iterations += 1;
+        for &s in &shooters {
+            clear_unshot(&mut hierarchies[s], &roots[s], direct);
+            unshot[s] = unshot_power(&hierarchies[s], &roots[s]);
+        }
+        iterations += shooters.len() as u64;
+        pass_shots = shooters.len() as u64;
         if direct {
             direct_left -= 1;
             if direct_left == 0 {
@@ -384,32 +400,137 @@ fn must_stop(
     }
 }
 
-/// The next shooter and whether its shot is direct: the next emitter's emission, else the root
-/// with the most unshot power; `None` once converged (or nothing is left to shoot).
-fn pick_shooter(
+/// At most this many roots shoot in one indirect pass (`pick_shooters`): a pass's fixed costs
+/// (the plan over every root, starting and ending a parallel loop, its last receivers) are paid
+/// once for all of them.
+const PASS_MAX: usize = 8;
+
+/// A root joins the pass of the root with the most unshot power when it holds at least this
+/// share of that power (the pass keeps close to the order of shots one at a time).
+const PASS_SHARE: f64 = 0.5;
+
+/// The next pass's shooters and whether it is a direct shot: the next emitter's emission alone;
+/// else the root with the most unshot power, and after it, by decreasing unshot power, up to
+/// [`PASS_MAX`] roots with at least [`PASS_SHARE`] of its power that face none of those taken
+/// (no root of a pass receives from another, so shooting them together changes only the order
+/// of shots: `tests::a_pass_takes_roots_that_face_none_of_its_others`). `None` once converged
+/// (or nothing is left to shoot).
+fn pick_shooters(
     direct: &mut impl Iterator<Item = usize>,
     unshot: &[f64],
-    ratio: f64,
-    target: f64,
-) -> Option<(usize, bool)> {
+    (ratio, target): (f64, f64),
+    (roots, spheres): (&[ElementRoot], &[Sphere]),
+    facing_eps: f64,
+) -> Option<(Vec<usize>, bool)> {
     if let Some(i) = direct.next() {
-        return Some((i, true));
+        return Some((vec![i], true));
     }
     if ratio <= target {
         return None;
     }
     let best = (0..unshot.len()).max_by(|&a, &b| unshot[a].total_cmp(&unshot[b]))?;
-    (unshot[best] > 0.0).then_some((best, false))
+    if unshot[best] <= 0.0 {
+        return None;
+    }
+    let floor = PASS_SHARE * unshot[best];
+    let mut candidates: Vec<usize> = (0..unshot.len())
+        .filter(|&i| i != best && unshot[i] >= floor)
+        .collect();
+    // Largest first, ties by index (deterministic); only the first few can be needed.
+    let order = |a: &usize, b: &usize| unshot[*b].total_cmp(&unshot[*a]).then(a.cmp(b));
+    let keep = 8 * PASS_MAX;
+    if candidates.len() > keep {
+        candidates.select_nth_unstable_by(keep, order);
+        candidates.truncate(keep);
+    }
+    candidates.sort_unstable_by(order);
+    let mut pass = vec![best];
+    for c in candidates {
+        if pass.len() == PASS_MAX {
+            break;
+        }
+        if pass
+            .iter()
+            .all(|&s| !faces_each_other(&roots[s], &spheres[s], &roots[c], &spheres[c], facing_eps))
+        {
+            pass.push(c);
+        }
+    }
+    Some((pass, false))
 }
 
-/// One shot of root `shooter` (of `kind`) onto every root that faces it, in parallel; each
-/// receiver's unshot power is updated. The shot's plan goes to `reporter` (after `iterations`
-/// shots), and a long shot reports from within to it. Returns false when the time budget ended
-/// within the shot and receivers were left out (`tests/progress.rs`
-/// `the_time_budget_stops_within_a_long_shot`).
+/// A root that shoots in a pass: its hierarchy, taken out of the solve's for the pass (read-only:
+/// no root of the pass receives), its unshot radiosity's face means, the element it shoots as,
+/// and the power it sends.
+struct Shooter {
+    index: usize,
+    hierarchy: Hierarchy,
+    face_means: Option<Vec<Rgb>>,
+    element: SourceElement,
+    power: f64,
+}
+
+impl Shooter {
+    fn take(ctx: &ShotContext, index: usize, direct: bool, h: &mut Hierarchy, unshot: f64) -> Self {
+        let sroot = &ctx.roots[index];
+        let n = ctx.bases.of(sroot.shape).len();
+        let hierarchy = std::mem::take(h);
+        let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+        if direct {
+            // The emission alone (a constant), whatever else the emitter already received.
+            coeffs[0] = sroot.exitance;
+        } else {
+            coeffs[..n].copy_from_slice(hierarchy.coeffs(&hierarchy.u, 0));
+        }
+        let face_means = if direct {
+            None
+        } else {
+            sroot
+                .mask
+                .as_ref()
+                .map(|_| cover::face_means(&hierarchy, &hierarchy.u))
+        };
+        let cover = hierarchy.covers.first().copied();
+        let stored_mean = face_means.as_ref().map(|m| m[0]);
+        let element = SourceElement::root(sroot, coeffs, n, cover, stored_mean);
+        let power = if direct {
+            mean_rgb_sum(sroot.exitance) * sroot.face_area_m2
+        } else {
+            unshot
+        };
+        Shooter {
+            index,
+            hierarchy,
+            face_means,
+            element,
+            power,
+        }
+    }
+
+    fn shot<'a>(&'a self, ctx: &ShotContext<'a>, direct: bool) -> ElementShot<'a> {
+        ElementShot {
+            roots: ctx.roots,
+            bases: ctx.bases,
+            rules: ctx.rules,
+            visibility: ctx.visibility,
+            source_root: self.index,
+            source_hierarchy: &self.hierarchy,
+            direct,
+            source_face_means: self.face_means.as_deref(),
+            min_edge: ctx.min_edge,
+        }
+    }
+}
+
+/// One pass of the roots `shooters` (of `kind`; a direct shot is alone in its pass, an indirect
+/// pass's roots face no other of them: `pick_shooters`) onto every root that faces one of them,
+/// the receivers in parallel, each taking the pass's shooters in turn; each receiver's unshot
+/// power is updated. The pass's plan goes to `reporter` (after `iterations` shots), and a long
+/// pass reports from within to it. Returns false when the time budget ended within the pass and
+/// receivers were left out (`tests/progress.rs` `the_time_budget_stops_within_a_long_shot`).
 fn shoot(
     ctx: &ShotContext,
-    (shooter, kind): (usize, ShotKind),
+    (shooters, kind): (&[usize], ShotKind),
     facing_eps: f64,
     target_unshot: f64,
     hierarchies: &mut [Hierarchy],
@@ -417,6 +538,8 @@ fn shoot(
     (reporter, iterations): (&mut Reporter, u64),
 ) -> bool {
     let direct = matches!(kind, ShotKind::Direct { .. });
+    let k = shooters.len();
+    debug_assert!((1..=PASS_MAX).contains(&k) && (!direct || k == 1));
     let ctx = &ShotContext {
         detail_threshold: if direct {
             ctx.threshold / DIRECT_DETAIL_TIGHTENING
@@ -426,84 +549,68 @@ fn shoot(
         ..*ctx
     };
     let roots = ctx.roots;
-    let sroot = &roots[shooter];
-    let n = ctx.bases.of(sroot.shape).len();
-    let source_h = std::mem::take(&mut hierarchies[shooter]);
-    let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-    if direct {
-        // The emission alone (a constant), whatever else the emitter already received.
-        coeffs[0] = sroot.exitance;
-    } else {
-        coeffs[..n].copy_from_slice(source_h.coeffs(&source_h.u, 0));
-    }
-    let source_face_means = if direct {
-        None
-    } else {
-        sroot
-            .mask
-            .as_ref()
-            .map(|_| cover::face_means(&source_h, &source_h.u))
-    };
-    let cover = source_h.covers.first().copied();
-    let stored_mean = source_face_means.as_ref().map(|m| m[0]);
-    let root_element = SourceElement::root(sroot, coeffs, n, cover, stored_mean);
-    let shot = ElementShot {
-        roots,
-        bases: ctx.bases,
-        rules: ctx.rules,
-        visibility: ctx.visibility,
-        source_root: shooter,
-        source_hierarchy: &source_h,
-        direct,
-        source_face_means: source_face_means.as_deref(),
-        min_edge: ctx.min_edge,
-    };
-    // What the shooter may send at most: receivers whose share of it is within the threshold
+    let taken: Vec<Shooter> = shooters
+        .iter()
+        .map(|&s| Shooter::take(ctx, s, direct, &mut hierarchies[s], unshot[s]))
+        .collect();
+    let shots: Vec<ElementShot> = taken.iter().map(|t| t.shot(ctx, direct)).collect();
+    // What each shooter may send at most: receivers whose share of it is within the threshold
     // take it as one far link (`far_field.rs`).
-    let power_bound = shot
-        .source(&root_element, [1.0; 3])
-        .map_or(0.0, |s| s.power_bound());
-    let visits = |ri: usize, h: &Hierarchy| {
-        ri != shooter && !h.nodes.is_empty() && faces_each_other(sroot, &roots[ri], facing_eps)
-    };
-    // Per root, what it would receive with no occluder (0 when not visited): its cost grows with
-    // it over the threshold (links under a soft shadow), and its reflectance sends it back.
-    let power = if direct {
-        mean_rgb_sum(sroot.exitance) * sroot.face_area_m2
-    } else {
-        unshot[shooter]
-    };
-    let received: Vec<f64> = hierarchies
+    let power_bounds: Vec<f64> = shots
+        .iter()
+        .zip(&taken)
+        .map(|(s, t)| {
+            s.source(&t.element, [1.0; 3])
+                .map_or(0.0, |s| s.power_bound())
+        })
+        .collect();
+    // Per root and shooter, what it would receive with no occluder (-1 when not visited: it
+    // does not face the shooter, or shoots in this pass): its cost grows with it over the
+    // threshold (links under a soft shadow), and its reflectance sends it back.
+    let received: Vec<[f64; PASS_MAX]> = hierarchies
         .par_iter()
         .enumerate()
         .map(|(ri, h)| {
-            if visits(ri, h) {
-                unoccluded_received(ctx, shooter, power, ri)
-            } else {
-                -1.0
+            let mut p = [-1.0; PASS_MAX];
+            if h.nodes.is_empty() {
+                return p;
             }
+            for (j, t) in taken.iter().enumerate() {
+                let (sroot, ssphere) = (&roots[t.index], &ctx.spheres[t.index]);
+                let (root, sphere) = (&roots[ri], &ctx.spheres[ri]);
+                if ri != t.index && faces_each_other(sroot, ssphere, root, sphere, facing_eps) {
+                    p[j] = unoccluded_received(ctx, t.index, t.power, ri);
+                }
+            }
+            p
         })
         .collect();
-    let receivers = received.iter().filter(|&&p| p >= 0.0).count() as u64;
-    let weight = |p: f64| 1.0 + p / ctx.threshold;
-    let units = CostUnits::new(
-        received
-            .iter()
-            .filter(|&&p| p >= 0.0)
-            .map(|&p| weight(p))
-            .sum(),
-    );
-    let expected = |ri: usize| received[ri].max(0.0) * mean_rgb_sum(roots[ri].rho) / 3.0;
+    let visited = |ri: usize| received[ri][..k].iter().any(|&p| p >= 0.0);
+    let receivers = (0..roots.len()).filter(|&ri| visited(ri)).count() as u64;
+    let weight = |p: f64| {
+        if p >= 0.0 {
+            1.0 + p / ctx.threshold
+        } else {
+            0.0
+        }
+    };
+    let weights = |ri: usize| received[ri][..k].iter().map(|&p| weight(p)).sum::<f64>();
+    let units = CostUnits::new((0..roots.len()).map(weights).sum());
+    let expected = |ri: usize| {
+        let p: f64 = received[ri][..k].iter().map(|&p| p.max(0.0)).sum();
+        p * mean_rgb_sum(roots[ri].rho) / 3.0
+    };
     let returns = (0..roots.len()).map(expected).sum();
     if direct && !reporter.has_forecast() {
         // The indirect phase foreseen from what this shot is expected to leave unshot, until
         // the direct phase ends and leaves the real figure (`solve`).
         // Each receiver's share as the few rays of `seen_fraction` see it (the plan's
         // estimate has no occluder: under a sky it would count every wall between buildings).
+        let shooter = shooters[0];
         let seen: Vec<f64> = (0..roots.len())
             .into_par_iter()
             .map(|ri| {
-                if received[ri] > 0.0 {
+                if received[ri][0] > 0.0 {
                     seen_fraction(ctx, shooter, ri)
                 } else {
                     0.0
@@ -516,14 +623,14 @@ fn shoot(
             .map(|ri| if emits(ri) { 0.0 } else { unshot[ri] } + expected(ri) * seen[ri])
             .collect();
         let base: f64 = (0..roots.len())
-            .map(|ri| received[ri].max(0.0) * seen[ri])
+            .map(|ri| received[ri][0].max(0.0) * seen[ri])
             .sum();
         let target = target_unshot * base;
         let f = foresee_indirect(ctx, hierarchies, &after, target, facing_eps);
         reporter.indirect_foreseen(f);
     }
     let returns_units = CostUnits::new(returns);
-    // What the shot's loop over its receivers costs (its plan above not counted), for
+    // What the pass's loop over its receivers costs (its plan above not counted), for
     // `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md, "What a shot costs
     // against the power it sends").
     let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
@@ -533,6 +640,7 @@ fn shoot(
         );
         (Instant::now(), rays, links)
     });
+    let power = taken.iter().map(|t| t.power).sum();
     reporter.shot_started(
         iterations,
         ShotPlan {
@@ -542,70 +650,72 @@ fn shoot(
         },
     );
     let interrupted = AtomicBool::new(false);
+    // A direct shot's receivers are few and costly: one at a time.
+    let chunk = if k == 1 { 1 } else { PASS_CHUNK };
     let work = |done: &ShotCounter| {
         hierarchies
-            .par_iter_mut()
-            .zip(unshot.par_iter_mut())
+            .par_chunks_mut(chunk)
+            .zip(unshot.par_chunks_mut(chunk))
             .enumerate()
-            // The shooter as a far source: built once per piece of the loop, not per receiver
-            // (it is not `Sync`: its corner stand-ins are filled lazily).
+            // The shooters as far sources: built once per piece of the loop, not per receiver
+            // (they are not `Sync`: their corner stand-ins are filled lazily).
             .for_each_init(
-                || shot.source(&root_element, [1.0; 3]),
-                |far_source, (ri, (h, power))| {
-                    // Not visited (`received` marks it -1): it does not face the shooter.
-                    if received[ri] < 0.0 {
-                        return;
-                    }
+                || -> Vec<_> {
+                    shots
+                        .iter()
+                        .zip(&taken)
+                        .map(|(s, t)| s.source(&t.element, [1.0; 3]))
+                        .collect()
+                },
+                |far_sources, (c, (hs, powers))| {
+                    let first = c * chunk;
                     if ctx.past_deadline() {
-                        interrupted.store(true, Ordering::Relaxed);
+                        if (first..first + hs.len()).any(visited) {
+                            interrupted.store(true, Ordering::Relaxed);
+                        }
                         return;
                     }
-                    let before = *power;
-                    // Whether the receiver took any light this shot (its unshot power changed).
-                    let mut took_light = false;
-                    let is_far = power_bound
-                        * far_field::transfer_fraction_bound(
-                            &ctx.spheres[shooter],
-                            &ctx.spheres[ri],
-                        )
-                        <= ctx.threshold;
-                    if is_far {
-                        let e = far_source.as_ref().and_then(|s| {
-                            far_field::far_irradiance(s, &roots[ri], ctx.link_points[ri])
-                        });
-                        if let Some(e) = e {
-                            took_light = ctx.accept_far(h, &roots[ri], e, direct);
-                        }
-                    } else {
-                        let mut record = ShotRecord::default();
-                        let rays = if !direct
-                            && centre_rays_suffice(
-                                received[ri],
-                                ctx.threshold,
-                                &ctx.spheres[shooter],
-                                &ctx.spheres[ri],
-                            ) {
-                            Rays::Centre
-                        } else {
-                            Rays::Trace
-                        };
-                        ctx.transfer(&shot, &root_element, ri, h, 0, &mut record, rays);
-                        if ctx.node_sums {
-                            ctx.refine_by_node_sums(&shot, record, ri, h);
+                    // Whether each receiver took any light this pass (its unshot power changed).
+                    let mut took_light = [false; PASS_CHUNK];
+                    // Shooter by shooter over the piece: the rays of neighbouring receivers to
+                    // one shooter follow one another through the visibility structure.
+                    for (j, t) in taken.iter().enumerate() {
+                        for (i, h) in hs.iter_mut().enumerate() {
+                            let ri = first + i;
+                            let received = received[ri][j];
+                            if received < 0.0 {
+                                continue;
+                            }
+                            took_light[i] |= receive_one(
+                                ctx,
+                                (&shots[j], t, far_sources[j].as_ref()),
+                                power_bounds[j],
+                                received,
+                                ri,
+                                h,
+                                direct,
+                            );
                         }
                     }
-                    if h.touched {
-                        h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
-                        took_light = true;
+                    for (i, (h, power)) in hs.iter_mut().zip(powers.iter_mut()).enumerate() {
+                        let ri = first + i;
+                        if !visited(ri) {
+                            continue;
+                        }
+                        let before = *power;
+                        if h.touched {
+                            h.push_pull(ctx.bases.of(roots[ri].shape), roots[ri].rho, direct);
+                            took_light[i] = true;
+                        }
+                        if took_light[i] {
+                            *power = unshot_power(h, &roots[ri]);
+                        }
+                        done.finished(
+                            units.of(weights(ri)),
+                            returns_units.of(expected(ri)),
+                            returns_units.of(*power - before),
+                        );
                     }
-                    if took_light {
-                        *power = unshot_power(h, &roots[ri]);
-                    }
-                    done.finished(
-                        units.of(weight(received[ri])),
-                        returns_units.of(expected(ri)),
-                        returns_units.of(*power - before),
-                    );
                 },
             )
     };
@@ -613,8 +723,9 @@ fn shoot(
     if let Some((start, rays, links)) = cost_before {
         tracing::trace!(
             direct,
+            shooters = k,
             power,
-            received = received.iter().filter(|&&p| p > 0.0).sum::<f64>(),
+            received = received.iter().flatten().filter(|&&p| p > 0.0).sum::<f64>(),
             threshold = ctx.threshold,
             receivers,
             seconds = start.elapsed().as_secs_f64(),
@@ -623,8 +734,47 @@ fn shoot(
             "shot cost"
         );
     }
-    hierarchies[shooter] = source_h;
+    drop(shots);
+    for t in taken {
+        hierarchies[t.index] = t.hierarchy;
+    }
     !interrupted.load(Ordering::Relaxed)
+}
+
+/// Receivers a piece of a pass's parallel loop takes together, shooter by shooter.
+const PASS_CHUNK: usize = 32;
+
+/// Receiver root `ri` (tree `h`) takes one shooter's light: as one far link when its whole share
+/// is within the threshold (`far_field.rs`, `power_bound` the shooter's bound), else refined
+/// link by link (and judged on its nodes' sums); `received` is the plan's estimate of its share
+/// with no occluder. Whether it took light without a push-pull pending (a far link's constant).
+fn receive_one(
+    ctx: &ShotContext,
+    (shot, shooter, far_source): (&ElementShot, &Shooter, Option<&ElementSource>),
+    power_bound: f64,
+    received: f64,
+    ri: usize,
+    h: &mut Hierarchy,
+    direct: bool,
+) -> bool {
+    let roots = ctx.roots;
+    let (s, r) = (&ctx.spheres[shooter.index], &ctx.spheres[ri]);
+    if power_bound * far_field::transfer_fraction_bound(s, r) <= ctx.threshold {
+        let e = far_source
+            .and_then(|fs| far_field::far_irradiance(fs, &roots[ri], ctx.link_points[ri]));
+        return e.is_some_and(|e| ctx.accept_far(h, &roots[ri], e, direct));
+    }
+    let mut record = ShotRecord::default();
+    let rays = if !direct && centre_rays_suffice(received, ctx.threshold, s, r) {
+        Rays::Centre
+    } else {
+        Rays::Trace
+    };
+    ctx.transfer(shot, &shooter.element, ri, h, 0, &mut record, rays);
+    if ctx.node_sums {
+        ctx.refine_by_node_sums(shot, record, ri, h);
+    }
+    false
 }
 
 /// The largest share of the oracle's threshold a near receiver may get from an indirect shot, with
@@ -689,7 +839,8 @@ fn foresee_indirect(
         target,
     };
     forecast(&input, &|s, r| {
-        (receives(r) && faces_each_other(&roots[s], &roots[r], facing_eps))
+        let (ss, sr) = (&ctx.spheres[s], &ctx.spheres[r]);
+        (receives(r) && faces_each_other(&roots[s], ss, &roots[r], sr, facing_eps))
             .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
     })
 }
@@ -741,8 +892,21 @@ fn mean_reflectance(roots: &[ElementRoot]) -> f64 {
         / area
 }
 
-/// Can any point of `a` (front side) see any point of `b` (front side)?
-fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
+/// Can any point of `a` (front side) see any point of `b` (front side)? Some corner of each lies
+/// in front of the other's plane (by more than `eps`). `sa` and `sb` are the roots' bounding
+/// spheres (`Sphere::of_root`): a root whose sphere lies wholly behind the other's plane has no
+/// corner in front of it, which decides most pairs before any corner is computed (the plan asks
+/// for every root of every shot). `tests::the_spheres_decide_as_the_corners_do`.
+fn faces_each_other(a: &ElementRoot, sa: &Sphere, b: &ElementRoot, sb: &Sphere, eps: f64) -> bool {
+    let behind = |n: DVec3, o: DVec3, s: &Sphere| n.dot(s.centre - o) + s.radius < 0.0;
+    if behind(a.normal, a.frame.origin, sb) || behind(b.normal, b.frame.origin, sa) {
+        return false;
+    }
+    faces_each_other_by_corners(a, b, eps)
+}
+
+/// [`faces_each_other`] from the corners alone.
+fn faces_each_other_by_corners(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
     let ca = a.corners();
     let cb = b.corners();
     let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
@@ -753,6 +917,88 @@ fn faces_each_other(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::domain::Shape;
+    use crate::solver::element::tests::parallelogram_root;
+
+    /// The sphere test decides as the corners do, for random pairs of parallelograms and
+    /// triangles in every orientation, many of them touching or crossing.
+    #[test]
+    fn the_spheres_decide_as_the_corners_do() {
+        let mut rnd = crate::shuffle::uniform_sequence(77);
+        let mut vector = |scale: f64| DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale;
+        let (mut facing, mut apart) = (0, 0);
+        for i in 0..20_000 {
+            let mut root = |shape| {
+                let mut r = parallelogram_root(vector(4.0), vector(2.0), vector(2.0));
+                r.shape = shape;
+                r
+            };
+            let shapes = [Shape::Parallelogram, Shape::Triangle];
+            let (a, b) = (root(shapes[i % 2]), root(shapes[i / 2 % 2]));
+            let (sa, sb) = (Sphere::of_root(&a), Sphere::of_root(&b));
+            let eps = 1e-9;
+            let expected = faces_each_other_by_corners(&a, &b, eps);
+            assert_eq!(
+                faces_each_other(&a, &sa, &b, &sb, eps),
+                expected,
+                "pair {i}"
+            );
+            if expected {
+                facing += 1;
+            } else {
+                apart += 1;
+            }
+        }
+        assert!(
+            facing > 2_000 && apart > 2_000,
+            "{facing} facing, {apart} not"
+        );
+    }
+
+    /// A pass: the root with the most unshot power first, then by decreasing power (ties by
+    /// index) the roots with at least `PASS_SHARE` of it that face none of those taken, at most
+    /// `PASS_MAX`; a direct shot alone; nothing once the ratio is at the target.
+    #[test]
+    fn a_pass_takes_roots_that_face_none_of_its_others() {
+        // Twelve floor tiles facing up (coplanar: none faces another) and a ceiling above the
+        // first two, facing down (it faces them).
+        let tile = |x: f64| parallelogram_root(DVec3::new(x, 0.0, 0.0), DVec3::X, DVec3::Y);
+        let mut roots: Vec<ElementRoot> = (0..12).map(|i| tile(2.0 * f64::from(i))).collect();
+        roots.push(parallelogram_root(
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::Y,
+            DVec3::X * 3.0,
+        ));
+        let spheres: Vec<Sphere> = roots.iter().map(Sphere::of_root).collect();
+        let mut unshot = vec![6.0; 13];
+        unshot[0] = 10.0;
+        unshot[12] = 9.0; // the ceiling: faces tile 0
+        unshot[1] = 8.0;
+        unshot[2] = 4.9; // below half of the best
+        unshot[5] = 7.0;
+        let pick = |unshot: &[f64], direct: &mut std::vec::IntoIter<usize>, ratio: f64| {
+            pick_shooters(direct, unshot, (ratio, 1e-3), (&roots, &spheres), 1e-9)
+        };
+        let (pass, direct) = pick(&unshot, &mut vec![].into_iter(), 1.0).unwrap();
+        assert!(!direct);
+        assert_eq!(pass, vec![0, 1, 5, 3, 4, 6, 7, 8]);
+        assert_eq!(pass.len(), PASS_MAX);
+        for (i, &a) in pass.iter().enumerate() {
+            for &b in &pass[i + 1..] {
+                let (ra, rb) = (&roots[a], &roots[b]);
+                assert!(!faces_each_other(ra, &spheres[a], rb, &spheres[b], 1e-9));
+            }
+        }
+        // The ceiling first: every tile lies in front of its plane and it in front of theirs.
+        unshot[12] = 11.0;
+        let (pass, _) = pick(&unshot, &mut vec![].into_iter(), 1.0).unwrap();
+        assert_eq!(pass, vec![12]);
+        // A direct shot is alone; at the target nothing is left.
+        let direct_queue = vec![3, 4];
+        let (pass, direct) = pick(&unshot, &mut direct_queue.into_iter(), 1.0).unwrap();
+        assert_eq!((pass, direct), (vec![3], true));
+        assert!(pick(&unshot, &mut vec![].into_iter(), 1e-4).is_none());
+    }
 
     /// One ray per point only for a receiver apart from the shooter that would get at most the
     /// share of the threshold: touching spheres, or a larger share, trace every sample.
