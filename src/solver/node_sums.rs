@@ -9,7 +9,7 @@ use super::basis::MAX_FUNCTIONS;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::oracle::{max_deviation, oracle_weight};
-use super::refine::{take_back, Shot, ShotContext};
+use super::refine::{take_back, Link, Shot, ShotContext};
 use super::shot_record::{NodeSum, Parts, ShotRecord};
 use super::{DETAIL_REL, MAX_DEPTH};
 use crate::domain::ElementRoot;
@@ -119,12 +119,19 @@ impl ShotContext<'_> {
             }
             let first = self.first_child(rcv, b, rroot);
             debug_assert!(first > b, "children come after their parent");
-            for c in 0..4 {
-                for &link in &resend.sources {
-                    let part = parts.get(link.path);
-                    self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);
-                }
-            }
+            let sources: Vec<(S::Part, Link)> = resend
+                .sources
+                .iter()
+                .map(|&link| (parts.get(link.path).clone(), link))
+                .collect();
+            let links: Vec<_> = (0..4)
+                .flat_map(|c| {
+                    sources
+                        .iter()
+                        .map(move |(part, link)| (part, *link, first + c))
+                })
+                .collect();
+            self.transfer_all(shot, &links, rcv_index, rcv, record);
         }
     }
 }

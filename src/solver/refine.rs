@@ -21,13 +21,14 @@ use super::Quantity;
 use crate::domain::{ElementRoot, ElementStatus};
 use crate::scene::Rgb;
 use glam::DVec3;
+use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::Mutex;
 
 /// What shoots in one shot.
 pub(super) trait Shot: Sync {
     /// What the recursion splits and records: an element of the shooter (`()` for a light).
-    type Part: Clone;
+    type Part: Clone + Send + Sync;
     /// A part as a receiver node sees it.
     type Source<'s>: Source
     where
@@ -51,6 +52,10 @@ pub(super) struct ShotContext<'a> {
     /// Record every gathered link, with its light at the receiver's check points, and judge each
     /// receiver node on the sum of its links after the shot (`refine_by_node_sums`).
     pub node_sums: bool,
+    /// Evaluate the links a split gives (four, or a node's re-sends) in parallel before acting
+    /// on them in order (`ShotContext::transfer_all`): a direct shot, whose largest receivers
+    /// each take minutes of one core while the others have finished.
+    pub split_in_parallel: bool,
     pub visibility: &'a Visibility,
     /// Absolute error threshold, in W (sum over channels).
     pub threshold: f64,
@@ -124,14 +129,60 @@ impl ShotContext<'_> {
         b: usize,
         record: &mut ShotRecord<S::Part>,
     ) {
-        if self.cancel.load(Ordering::Relaxed) {
+        if let Some(evaluation) = self.evaluate(shot, part, link, rcv_index, rcv, b) {
+            self.act(shot, part, evaluation, rcv_index, rcv, b, record);
+        }
+    }
+
+    /// [`ShotContext::transfer_at`] of every `(part, link, node)` of `links`, in order: what each
+    /// link delivers is computed first (in parallel when `split_in_parallel`), reading nothing
+    /// an action changes; then, link by link in order, the oracle's verdict and the action. The
+    /// result is the one of `transfer_at` link after link, whatever the threads
+    /// (`tests/reproducible.rs`).
+    pub fn transfer_all<S: Shot>(
+        &self,
+        shot: &S,
+        links: &[(&S::Part, Link, usize)],
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+        record: &mut ShotRecord<S::Part>,
+    ) {
+        if !self.split_in_parallel || links.len() < 2 {
+            for &(part, link, b) in links {
+                self.transfer_at(shot, part, link, rcv_index, rcv, b, record);
+            }
             return;
+        }
+        let read: &Hierarchy = rcv;
+        let evaluations: Vec<Option<Evaluation>> = links
+            .par_iter()
+            .map(|&(part, link, b)| self.evaluate(shot, part, link, rcv_index, read, b))
+            .collect();
+        for (&(part, _, b), evaluation) in links.iter().zip(evaluations) {
+            if let Some(evaluation) = evaluation {
+                self.act(shot, part, evaluation, rcv_index, rcv, b, record);
+            }
+        }
+    }
+
+    /// What `part` delivers to receiver node `b` through `link` (the costly part: rays and form
+    /// factors); `None` when it sends nothing (or the solve was cancelled). Reads the receiver
+    /// only.
+    fn evaluate<S: Shot>(
+        &self,
+        shot: &S,
+        part: &S::Part,
+        link: Link,
+        rcv_index: usize,
+        rcv: &Hierarchy,
+        b: usize,
+    ) -> Option<Evaluation> {
+        if self.cancel.load(Ordering::Relaxed) {
+            return None;
         }
         let rroot = &self.roots[rcv_index];
         let weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
-        let Some(source) = shot.source(part, weight) else {
-            return;
-        };
+        let source = shot.source(part, weight)?;
         let receiver = ReceiverNode::new(rroot, rcv, b);
         let rays = match (link.rays, &receiver.cover) {
             // Off the face, a node's points cast from stand-ins on the face's border, which
@@ -139,37 +190,73 @@ impl ShotContext<'_> {
             (Rays::AllPass, Some(c)) if c.status != ElementStatus::Full => Rays::Trace,
             (rays, _) => rays,
         };
-        let received = self.receive(&source, &receiver, rays);
-        match oracle::evaluate(self, &source, &receiver, &received, weight, rays) {
-            Verdict::Accept => self.accept(link.path, rroot, rcv, b, &received, record),
+        let received = Box::new(self.receive(&source, &receiver, rays));
+        Some(Evaluation {
+            path: link.path,
+            rays,
+            received,
+        })
+    }
+
+    /// Asks the oracle about a link of `part` to node `b` (the node as it is now: whether it is
+    /// still a leaf weighs a textured receiver's reflectance), and acts on the verdict: gathers
+    /// the link, or splits the source or the node and transfers the pieces.
+    #[allow(clippy::too_many_arguments)]
+    fn act<S: Shot>(
+        &self,
+        shot: &S,
+        part: &S::Part,
+        evaluation: Evaluation,
+        rcv_index: usize,
+        rcv: &mut Hierarchy,
+        b: usize,
+        record: &mut ShotRecord<S::Part>,
+    ) {
+        let rroot = &self.roots[rcv_index];
+        let Evaluation {
+            path,
+            rays,
+            received,
+        } = evaluation;
+        let verdict = {
+            let weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
+            let Some(source) = shot.source(part, weight) else {
+                return;
+            };
+            let receiver = ReceiverNode::new(rroot, rcv, b);
+            oracle::evaluate(self, &source, &receiver, &received, weight, rays)
+        };
+        match verdict {
+            Verdict::Accept => self.accept(path, rroot, rcv, b, &received, record),
             Verdict::Capped => {
                 self.capped.fetch_add(1, Ordering::Relaxed);
-                self.accept(link.path, rroot, rcv, b, &received, record);
+                self.accept(path, rroot, rcv, b, &received, record);
             }
             Verdict::SplitSource => {
-                for (c, child) in shot.children(part).iter().enumerate() {
+                let children = shot.children(part);
+                let links: [_; 4] = std::array::from_fn(|c| {
                     let sub = Link {
-                        path: link.path.child(c),
+                        path: path.child(c),
                         rays,
                     };
-                    self.transfer_at(shot, child, sub, rcv_index, rcv, b, record);
-                }
+                    (&children[c], sub, b)
+                });
+                self.transfer_all(shot, &links, rcv_index, rcv, record);
             }
             Verdict::SplitReceiver => {
                 let first = self.first_child(rcv, b, rroot);
                 // The node's children trace: rays taken as passing stand for one level. A link on
                 // one ray per point stays so: its children carry less still.
                 let link = Link {
-                    path: link.path,
+                    path,
                     rays: if rays == Rays::Centre {
                         Rays::Centre
                     } else {
                         Rays::Trace
                     },
                 };
-                for c in 0..4 {
-                    self.transfer_at(shot, part, link, rcv_index, rcv, first + c, record);
-                }
+                let links: [_; 4] = std::array::from_fn(|c| (part, link, first + c));
+                self.transfer_all(shot, &links, rcv_index, rcv, record);
             }
         }
     }
@@ -255,6 +342,13 @@ impl ShotContext<'_> {
             rcv.nodes[b].first_child as usize
         }
     }
+}
+
+/// A link evaluated: where its part lies, how its rays were decided, and what it delivered.
+struct Evaluation {
+    path: SourcePath,
+    rays: Rays,
+    received: Box<Received>,
 }
 
 /// A link of a shot's recursion: where its part lies under the part the recursion started from,

@@ -82,6 +82,7 @@ pub fn solve(
         psi: &psi,
         // Lights' shots are judged link by link; element shots set this from the parameters.
         node_sums: false,
+        split_in_parallel: false,
         visibility,
         threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
         detail_threshold: params.tolerance * (mean_rgb_sum(emitted) + light_estimate),
@@ -546,6 +547,7 @@ fn shoot(
         } else {
             ctx.threshold
         },
+        split_in_parallel: direct,
         ..*ctx
     };
     let roots = ctx.roots;
@@ -657,6 +659,10 @@ fn shoot(
             .par_chunks_mut(chunk)
             .zip(unshot.par_chunks_mut(chunk))
             .enumerate()
+            // Pieces split down to one chunk when stolen: rayon's default leaves pieces of many
+            // receivers that run on one thread to their end, however many of them are costly
+            // (a sky's direct shot ran on one core for most of its time).
+            .with_max_len(1)
             // The shooters as far sources: built once per piece of the loop, not per receiver
             // (they are not `Sync`: their corner stand-ins are filled lazily).
             .for_each_init(
