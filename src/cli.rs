@@ -259,6 +259,11 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> Exi
         }
     };
     init_logging(&cli.log_format);
+    // The global pool runs the CLI's solves: threads with the solver's stack. An error means a
+    // pool already exists (another call in this process), which is kept.
+    let _ = rayon::ThreadPoolBuilder::new()
+        .stack_size(crate::solver::SOLVER_STACK_BYTES)
+        .build_global();
     match cli.command {
         Command::Solve(a) => solve(a, &cli.log_format),
         Command::Faces(a) => faces(a),

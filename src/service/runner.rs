@@ -32,6 +32,7 @@ pub(crate) fn solver_pool(workers: usize) -> io::Result<rayon::ThreadPool> {
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     rayon::ThreadPoolBuilder::new()
         .num_threads(cores + workers)
+        .stack_size(crate::solver::SOLVER_STACK_BYTES)
         .thread_name(|i| format!("wavrad-solve-{i}"))
         .start_handler(|_| lower_thread_priority())
         .panic_handler(|payload| {

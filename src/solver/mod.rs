@@ -69,6 +69,11 @@ pub const DETAIL_REL: f64 = 0.01;
 pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
+/// Stack of each thread of a pool that solves: a thread waiting for a stolen piece of a direct
+/// shot's evaluations (`refine.rs`, `transfer_all`) may run other receivers' recursions on top of
+/// its own (rayon's work stealing), so it needs more than a thread's default 2 MiB (reserved,
+/// not committed, until used).
+pub const SOLVER_STACK_BYTES: usize = 64 << 20;
 
 /// Solver settings (the solver options of docs/contract.md that reach the solver).
 #[derive(Debug, Clone)]
@@ -123,9 +128,10 @@ impl StopReason {
 
 /// Progress of the solve (feeds the CLI bar, convergence.csv and the HTTP progress object).
 ///
-/// Reported after every shot (those rows, and only those, are the solution's `convergence`) and,
-/// during a shot that lasts longer than [`REPORT_INTERVAL`], every `REPORT_INTERVAL` from within
-/// it (`tests/progress.rs`, `progress_moves_within_a_long_shot`).
+/// Reported after every pass of shots (those reports, one row per shot of the pass, are the
+/// solution's `convergence`) and, during a pass that lasts longer than [`REPORT_INTERVAL`],
+/// every `REPORT_INTERVAL` from within it (`tests/progress.rs`,
+/// `progress_moves_within_a_long_shot`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Progress {
     /// Shots finished (lights' shots included).
@@ -140,7 +146,8 @@ pub struct Progress {
     pub seconds: f64,
     /// Receiver roots the shot in progress has finished, of `shot_receivers`.
     pub shot_receivers_done: u64,
-    /// Receiver roots the shot in progress visits (those facing the shooter); 0 between shots.
+    /// Receiver roots the pass in progress visits (those facing any of its shooters); 0 between
+    /// passes.
     pub shot_receivers: u64,
     /// Estimated seconds until the solve ends: the target reached, or the time budget spent
     /// (`eta::EtaEstimator`); `None` until it can be estimated.

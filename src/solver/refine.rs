@@ -54,7 +54,7 @@ pub(super) struct ShotContext<'a> {
     pub node_sums: bool,
     /// Evaluate the links a split gives (four, or a node's re-sends) in parallel before acting
     /// on them in order (`ShotContext::transfer_all`): a direct shot, whose largest receivers
-    /// each take minutes of one core while the others have finished.
+    /// would each hold one core while the others have finished.
     pub split_in_parallel: bool,
     pub visibility: &'a Visibility,
     /// Absolute error threshold, in W (sum over channels).
@@ -73,8 +73,8 @@ pub(super) struct ShotContext<'a> {
     /// The largest link record of any receiver in any shot (`ShotRecord::peak`).
     pub link_records: &'a Mutex<LinkBytes>,
     pub cancel: &'a AtomicBool,
-    /// When the time budget ends (`SolverParams::max_seconds`): a shot still running then takes
-    /// no further receiver (`shooting::shoot`).
+    /// When the time budget ends (`SolverParams::max_seconds`): a pass still running then takes
+    /// no further piece of receivers (`shooting::shoot`).
     pub deadline: Option<std::time::Instant>,
     /// Each root's bounding sphere (`far_field.rs`).
     pub spheres: &'a [Sphere],
@@ -129,7 +129,8 @@ impl ShotContext<'_> {
         b: usize,
         record: &mut ShotRecord<S::Part>,
     ) {
-        if let Some(evaluation) = self.evaluate(shot, part, link, rcv_index, rcv, b) {
+        // Nothing acts between the evaluation and the action: the oracle judges at once.
+        if let Some(evaluation) = self.evaluate(shot, part, link, rcv_index, rcv, b, true) {
             self.act(shot, part, evaluation, rcv_index, rcv, b, record);
         }
     }
@@ -156,7 +157,7 @@ impl ShotContext<'_> {
         let read: &Hierarchy = rcv;
         let evaluations: Vec<Option<Evaluation>> = links
             .par_iter()
-            .map(|&(part, link, b)| self.evaluate(shot, part, link, rcv_index, read, b))
+            .map(|&(part, link, b)| self.evaluate(shot, part, link, rcv_index, read, b, false))
             .collect();
         for (&(part, _, b), evaluation) in links.iter().zip(evaluations) {
             if let Some(evaluation) = evaluation {
@@ -166,8 +167,9 @@ impl ShotContext<'_> {
     }
 
     /// What `part` delivers to receiver node `b` through `link` (the costly part: rays and form
-    /// factors); `None` when it sends nothing (or the solve was cancelled). Reads the receiver
-    /// only.
+    /// factors), and with `judge` the oracle's verdict on the node as it is; `None` when it
+    /// sends nothing (or the solve was cancelled). Reads the receiver only.
+    #[allow(clippy::too_many_arguments)]
     fn evaluate<S: Shot>(
         &self,
         shot: &S,
@@ -176,6 +178,7 @@ impl ShotContext<'_> {
         rcv_index: usize,
         rcv: &Hierarchy,
         b: usize,
+        judge: bool,
     ) -> Option<Evaluation> {
         if self.cancel.load(Ordering::Relaxed) {
             return None;
@@ -191,10 +194,13 @@ impl ShotContext<'_> {
             (rays, _) => rays,
         };
         let received = Box::new(self.receive(&source, &receiver, rays));
+        let verdict =
+            judge.then(|| oracle::evaluate(self, &source, &receiver, &received, weight, rays));
         Some(Evaluation {
             path: link.path,
             rays,
             received,
+            verdict,
         })
     }
 
@@ -217,8 +223,11 @@ impl ShotContext<'_> {
             path,
             rays,
             received,
+            verdict,
         } = evaluation;
-        let verdict = {
+        let verdict = if let Some(verdict) = verdict {
+            verdict
+        } else {
             let weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
             let Some(source) = shot.source(part, weight) else {
                 return;
@@ -344,11 +353,13 @@ impl ShotContext<'_> {
     }
 }
 
-/// A link evaluated: where its part lies, how its rays were decided, and what it delivered.
+/// A link evaluated: where its part lies, how its rays were decided, what it delivered, and the
+/// oracle's verdict when it was judged at once (`None`: to be judged when acted on).
 struct Evaluation {
     path: SourcePath,
     rays: Rays,
     received: Box<Received>,
+    verdict: Option<Verdict>,
 }
 
 /// A link of a shot's recursion: where its part lies under the part the recursion started from,

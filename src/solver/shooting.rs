@@ -1,5 +1,5 @@
-//! The shooting loop (docs/design.md section 5.1) as named steps: shoot the lights (punctual lights first;
-//! what they deliver counts as emitted), then report, pick the shooters (the next emitter's
+//! The shooting loop (docs/design.md section 5.1) as named steps: shoot the lights (punctual
+//! lights first; what they deliver counts as emitted), then report, pick the shooters (the next emitter's
 //! direct shot alone, else a pass of the root with the most unshot power and roots of at least
 //! half its power that face none of the pass's others), shoot (every receiver in parallel, the
 //! shooters read-only), clear what was shot; until the unshot ratio reaches the target.
@@ -46,8 +46,9 @@ struct Counters {
     link_records: Mutex<LinkBytes>,
 }
 
-/// Runs the shooting loop. `observe` is called after every shot, and from within a long shot
-/// (`Progress`); `cancel` stops the solve at the next check (between and inside shots).
+/// Runs the shooting loop. `observe` is called after every pass of shots, and from within a
+/// long pass (`Progress`); `cancel` stops the solve at the next check (between and inside
+/// passes).
 pub fn solve(
     roots: Vec<ElementRoot>,
     lights: &[PunctualLight],
@@ -163,7 +164,11 @@ pub fn solve(
         let Some((shooters, direct)) = pick_shooters(
             &mut direct_iter,
             &unshot,
-            (ratio, params.target_unshot),
+            (
+                ratio,
+                params.target_unshot,
+                params.max_iterations.saturating_sub(iterations),
+            ),
             (&roots, &spheres),
             facing_eps,
         ) else {
@@ -186,9 +191,9 @@ pub fn solve(
             (&mut reporter, iterations),
         );
         if !completed {
-            // The budget ended within the shot: the receivers it reached keep their light, the
-            // shooter keeps its unshot power (the ratio stays an upper bound), and the check at
-            // the top of the loop stops the solve.
+            // The budget ended within the pass: the receivers it reached keep their light, the
+            // shooters keep their unshot power (the ratio stays an upper bound), and the check
+            // at the top of the loop stops the solve.
             pass_shots = 1;
             continue;
         }
@@ -384,7 +389,7 @@ fn add_to_unshot_constant(h: &mut Hierarchy, c: Rgb, sign: f64) {
     }
 }
 
-/// Why the loop must stop before the next shot, if it must (convergence is `pick_shooter`'s).
+/// Why the loop must stop before the next shot, if it must (convergence is `pick_shooters`'s).
 fn must_stop(
     progress: &Progress,
     params: &SolverParams,
@@ -410,16 +415,20 @@ const PASS_MAX: usize = 8;
 /// share of that power (the pass keeps close to the order of shots one at a time).
 const PASS_SHARE: f64 = 0.5;
 
+/// A pass looks no further than this many roots after the first, by decreasing unshot power.
+const PASS_CANDIDATES: usize = 8 * PASS_MAX;
+
 /// The next pass's shooters and whether it is a direct shot: the next emitter's emission alone;
-/// else the root with the most unshot power, and after it, by decreasing unshot power, up to
-/// [`PASS_MAX`] roots with at least [`PASS_SHARE`] of its power that face none of those taken
-/// (no root of a pass receives from another, so shooting them together changes only the order
-/// of shots: `tests::a_pass_takes_roots_that_face_none_of_its_others`). `None` once converged
-/// (or nothing is left to shoot).
+/// else the root with the most unshot power, and after it, among the [`PASS_CANDIDATES`] next by
+/// decreasing unshot power, up to `max_shots` (at most [`PASS_MAX`]) with at least
+/// [`PASS_SHARE`] of its power that face none of those taken (no root of a pass receives from
+/// another, so shooting them together changes only the order of shots:
+/// `tests::a_pass_takes_roots_that_face_none_of_its_others`). `None` once converged (or nothing
+/// is left to shoot).
 fn pick_shooters(
     direct: &mut impl Iterator<Item = usize>,
     unshot: &[f64],
-    (ratio, target): (f64, f64),
+    (ratio, target, max_shots): (f64, f64, u64),
     (roots, spheres): (&[ElementRoot], &[Sphere]),
     facing_eps: f64,
 ) -> Option<(Vec<usize>, bool)> {
@@ -437,17 +446,19 @@ fn pick_shooters(
     let mut candidates: Vec<usize> = (0..unshot.len())
         .filter(|&i| i != best && unshot[i] >= floor)
         .collect();
-    // Largest first, ties by index (deterministic); only the first few can be needed.
+    // Largest first, ties by index (deterministic); no further than `PASS_CANDIDATES`.
     let order = |a: &usize, b: &usize| unshot[*b].total_cmp(&unshot[*a]).then(a.cmp(b));
-    let keep = 8 * PASS_MAX;
-    if candidates.len() > keep {
-        candidates.select_nth_unstable_by(keep, order);
-        candidates.truncate(keep);
+    if candidates.len() > PASS_CANDIDATES {
+        candidates.select_nth_unstable_by(PASS_CANDIDATES, order);
+        candidates.truncate(PASS_CANDIDATES);
     }
     candidates.sort_unstable_by(order);
+    let most = usize::try_from(max_shots)
+        .unwrap_or(PASS_MAX)
+        .clamp(1, PASS_MAX);
     let mut pass = vec![best];
     for c in candidates {
-        if pass.len() == PASS_MAX {
+        if pass.len() == most {
             break;
         }
         if pass
@@ -551,6 +562,16 @@ fn shoot(
         ..*ctx
     };
     let roots = ctx.roots;
+    debug_assert!(
+        shooters
+            .iter()
+            .enumerate()
+            .all(|(i, &a)| shooters[i + 1..].iter().all(|&b| {
+                let (sa, sb) = (&ctx.spheres[a], &ctx.spheres[b]);
+                !faces_each_other(&roots[a], sa, &roots[b], sb, facing_eps)
+            })),
+        "no root of a pass receives from another"
+    );
     let taken: Vec<Shooter> = shooters
         .iter()
         .map(|&s| Shooter::take(ctx, s, direct, &mut hierarchies[s], unshot[s]))
@@ -653,18 +674,19 @@ fn shoot(
     );
     let interrupted = AtomicBool::new(false);
     // A direct shot's receivers are few and costly: one at a time.
-    let chunk = if k == 1 { 1 } else { PASS_CHUNK };
+    let chunk = if direct { 1 } else { PASS_CHUNK };
     let work = |done: &ShotCounter| {
         hierarchies
             .par_chunks_mut(chunk)
             .zip(unshot.par_chunks_mut(chunk))
             .enumerate()
-            // Pieces split down to one chunk when stolen: rayon's default leaves pieces of many
-            // receivers that run on one thread to their end, however many of them are costly
-            // (a sky's direct shot ran on one core for most of its time).
+            // Pieces split down to one chunk: rayon's default leaves pieces of many receivers
+            // that run on one thread to their end, however many of them are costly, while the
+            // other threads wait (docs/performance-notes.md, "Both cores all the time").
             .with_max_len(1)
-            // The shooters as far sources: built once per piece of the loop, not per receiver
-            // (they are not `Sync`: their corner stand-ins are filled lazily).
+            // The shooters as far sources: built once per piece of the loop (a chunk of
+            // receivers), not per link (they are not `Sync`: their corner stand-ins are filled
+            // lazily).
             .for_each_init(
                 || -> Vec<_> {
                     shots
@@ -932,7 +954,7 @@ mod tests {
     fn the_spheres_decide_as_the_corners_do() {
         let mut rnd = crate::shuffle::uniform_sequence(77);
         let mut vector = |scale: f64| DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale;
-        let (mut facing, mut apart) = (0, 0);
+        let (mut facing, mut apart, mut by_spheres) = (0, 0, 0);
         for i in 0..20_000 {
             let mut root = |shape| {
                 let mut r = parallelogram_root(vector(4.0), vector(2.0), vector(2.0));
@@ -944,6 +966,10 @@ mod tests {
             let (sa, sb) = (Sphere::of_root(&a), Sphere::of_root(&b));
             let eps = 1e-9;
             let expected = faces_each_other_by_corners(&a, &b, eps);
+            let behind = |n: DVec3, o: DVec3, s: &Sphere| n.dot(s.centre - o) + s.radius < 0.0;
+            if behind(a.normal, a.frame.origin, &sb) || behind(b.normal, b.frame.origin, &sa) {
+                by_spheres += 1;
+            }
             assert_eq!(
                 faces_each_other(&a, &sa, &b, &sb, eps),
                 expected,
@@ -958,6 +984,10 @@ mod tests {
         assert!(
             facing > 2_000 && apart > 2_000,
             "{facing} facing, {apart} not"
+        );
+        assert!(
+            by_spheres > 1_000,
+            "{by_spheres} pairs decided by the spheres"
         );
     }
 
@@ -983,7 +1013,7 @@ mod tests {
         unshot[2] = 4.9; // below half of the best
         unshot[5] = 7.0;
         let pick = |unshot: &[f64], direct: &mut std::vec::IntoIter<usize>, ratio: f64| {
-            pick_shooters(direct, unshot, (ratio, 1e-3), (&roots, &spheres), 1e-9)
+            pick_shooters(direct, unshot, (ratio, 1e-3, 100), (&roots, &spheres), 1e-9)
         };
         let (pass, direct) = pick(&unshot, &mut vec![].into_iter(), 1.0).unwrap();
         assert!(!direct);
@@ -999,6 +1029,36 @@ mod tests {
         unshot[12] = 11.0;
         let (pass, _) = pick(&unshot, &mut vec![].into_iter(), 1.0).unwrap();
         assert_eq!(pass, vec![12]);
+        // Below half of the best power no root joins, even with room left in the pass.
+        let few = [
+            10.0, 4.9, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+        ];
+        let (pass, _) = pick(&few, &mut vec![].into_iter(), 1.0).unwrap();
+        assert_eq!(pass, vec![0, 2]);
+        // No more shots than the solve may still make.
+        let capped = pick_shooters(
+            &mut vec![].into_iter(),
+            &unshot[..12],
+            (1.0, 1e-3, 3),
+            (&roots[..12], &spheres[..12]),
+            1e-9,
+        );
+        assert_eq!(capped.unwrap().0.len(), 3);
+        // Among many candidates, the largest (then the lowest indices) still come first.
+        let tiles: Vec<ElementRoot> = (0..100).map(|i| tile(2.0 * f64::from(i))).collect();
+        let tile_spheres: Vec<Sphere> = tiles.iter().map(Sphere::of_root).collect();
+        let mut many = vec![6.0; 100];
+        many[40] = 10.0;
+        many[77] = 7.0;
+        let (pass, _) = pick_shooters(
+            &mut vec![].into_iter(),
+            &many,
+            (1.0, 1e-3, 100),
+            (&tiles, &tile_spheres),
+            1e-9,
+        )
+        .unwrap();
+        assert_eq!(pass, vec![40, 77, 0, 1, 2, 3, 4, 5]);
         // A direct shot is alone; at the target nothing is left.
         let direct_queue = vec![3, 4];
         let (pass, direct) = pick(&unshot, &mut direct_queue.into_iter(), 1.0).unwrap();
