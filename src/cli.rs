@@ -248,6 +248,25 @@ fn internal(message: impl std::fmt::Display) -> ExitCode {
     ExitCode::from(1)
 }
 
+/// Gives the global pool, which runs the CLI's solves, threads with the solver's stack
+/// (`solver::SOLVER_STACK_BYTES`), when a thread of that stack can be started at all (a pool
+/// that fails to start would leave none); else rayon's default pool serves, with a warning.
+fn use_solver_stacks() {
+    let stack = crate::solver::SOLVER_STACK_BYTES;
+    let startable = std::thread::Builder::new()
+        .stack_size(stack)
+        .spawn(|| ())
+        .is_ok_and(|t| t.join().is_ok());
+    let built = startable
+        && rayon::ThreadPoolBuilder::new()
+            .stack_size(stack)
+            .build_global()
+            .is_ok();
+    if !built {
+        tracing::warn!(stack, "the solver's threads keep rayon's default stack");
+    }
+}
+
 /// Parses the arguments and runs the command; returns the process exit code.
 pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> ExitCode {
     let cli = match Cli::try_parse_from(args) {
@@ -259,13 +278,11 @@ pub fn main_with_args(args: impl IntoIterator<Item = std::ffi::OsString>) -> Exi
         }
     };
     init_logging(&cli.log_format);
-    // The global pool runs the CLI's solves: threads with the solver's stack. An error means a
-    // pool already exists (another call in this process), which is kept.
-    let _ = rayon::ThreadPoolBuilder::new()
-        .stack_size(crate::solver::SOLVER_STACK_BYTES)
-        .build_global();
     match cli.command {
-        Command::Solve(a) => solve(a, &cli.log_format),
+        Command::Solve(a) => {
+            use_solver_stacks();
+            solve(a, &cli.log_format)
+        }
         Command::Faces(a) => faces(a),
         Command::Serve(a) => serve(a),
         Command::Bench(BenchCommand::Visibility(a)) => bench::visibility(a),

@@ -4,12 +4,14 @@
 //! with the exact point-to-polygon form factor for the constant part, visibility by rays), the
 //! refinement oracle and the shooting loop. It does no I/O and knows neither glTF nor HTTP.
 //!
-//! Shooting (docs/design.md section 5.1): emitters first shoot their emission (the "direct" shots, recorded
-//! apart so `--indirect-only` can leave them out); then the root with the most unshot power shoots
-//! until `unshot_ratio = unshot power / direct power received <= target`. Links are not cached: each
-//! transfer is recomputed when its source shoots again (memory stays proportional to elements).
-//! Receivers of one shot are processed in parallel (rayon); the shooter is read-only during it,
-//! and is refined only virtually (sub-elements computed by push, not stored).
+//! Shooting (docs/design.md section 5.1): emitters first shoot their emission (the "direct"
+//! shots, recorded apart so `--indirect-only` can leave them out); then the root with the most
+//! unshot power shoots, in a pass with roots of at least half its power that face none of the
+//! pass's others, until `unshot_ratio = unshot power / direct power received <= target`. Links
+//! are not cached: each transfer is recomputed when its source shoots again (memory stays
+//! proportional to elements). Receivers of one pass are processed in parallel (rayon); the
+//! shooters are read-only during it, and refined only virtually (sub-elements computed by push,
+//! not stored).
 
 pub(crate) mod basis;
 pub(crate) mod cover;
@@ -144,7 +146,7 @@ pub struct Progress {
     pub links: u64,
     /// Seconds of solving so far.
     pub seconds: f64,
-    /// Receiver roots the shot in progress has finished, of `shot_receivers`.
+    /// Receiver roots the pass in progress has finished, of `shot_receivers`.
     pub shot_receivers_done: u64,
     /// Receiver roots the pass in progress visits (those facing any of its shooters); 0 between
     /// passes.

@@ -135,10 +135,10 @@ impl ShotContext<'_> {
         }
     }
 
-    /// [`ShotContext::transfer_at`] of every `(part, link, node)` of `links`, in order: what each
-    /// link delivers is computed first (in parallel when `split_in_parallel`), reading nothing
-    /// an action changes; then, link by link in order, the oracle's verdict and the action. The
-    /// result is the one of `transfer_at` link after link, whatever the threads
+    /// [`ShotContext::transfer_at`] of every `(part, link, node)` of `links`, in order. When
+    /// `split_in_parallel`, what each link delivers is computed first, in parallel, reading
+    /// nothing an action changes; then, link by link in order, the oracle's verdict and the
+    /// action. The result is the one of `transfer_at` link after link, whatever the threads
     /// (`tests/reproducible.rs`).
     pub fn transfer_all<S: Shot>(
         &self,

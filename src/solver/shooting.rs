@@ -1,8 +1,9 @@
 //! The shooting loop (docs/design.md section 5.1) as named steps: shoot the lights (punctual
-//! lights first; what they deliver counts as emitted), then report, pick the shooters (the next emitter's
-//! direct shot alone, else a pass of the root with the most unshot power and roots of at least
-//! half its power that face none of the pass's others), shoot (every receiver in parallel, the
-//! shooters read-only), clear what was shot; until the unshot ratio reaches the target.
+//! lights first; what they deliver counts as emitted), then report, pick the shooters (the next
+//! emitter's direct shot alone, else a pass of the root with the most unshot power and roots of
+//! at least half its power that face none of the pass's others), shoot (every receiver in
+//! parallel, the shooters read-only), clear what was shot; until the unshot ratio reaches the
+//! target.
 //!
 //! Invariant: after every pass each root's unshot power (`unshot`) is up to date, every `dh` is
 //! clear, and `u` holds exactly what is left to shoot (a direct shot removes only the emission);
@@ -420,10 +421,10 @@ const PASS_CANDIDATES: usize = 8 * PASS_MAX;
 
 /// The next pass's shooters and whether it is a direct shot: the next emitter's emission alone;
 /// else the root with the most unshot power, and after it, among the [`PASS_CANDIDATES`] next by
-/// decreasing unshot power, up to `max_shots` (at most [`PASS_MAX`]) with at least
-/// [`PASS_SHARE`] of its power that face none of those taken (no root of a pass receives from
-/// another, so shooting them together changes only the order of shots:
-/// `tests::a_pass_takes_roots_that_face_none_of_its_others`). `None` once converged (or nothing
+/// decreasing unshot power, those with at least [`PASS_SHARE`] of its power that face none of
+/// those taken, the pass `max_shots` roots at most (and [`PASS_MAX`]). No root of a pass
+/// receives from another, so shooting them together changes only the order of shots
+/// (`tests::a_pass_takes_roots_that_face_none_of_its_others`). `None` once converged (or nothing
 /// is left to shoot).
 fn pick_shooters(
     direct: &mut impl Iterator<Item = usize>,
