@@ -50,7 +50,7 @@ pub(super) const POINT_ESTIMATE_RADII: f64 = 4.0;
 /// area, `A cos_s cos_r / (pi d^2)` (0 when either faces away), when the centres are at least
 /// [`POINT_ESTIMATE_RADII`] times the sum of the radii apart; `None` nearer. Its relative error
 /// is of the order of `(r / d)^2`: `point_estimate_is_close_to_the_polygon_form_factor` pins it
-/// within 5 % of the exact form factor (at grazing angles, of 0.3 times the head-on one). A cost and reflection estimate (`shooting.rs`), one
+/// within 5 % of the exact form factor (at grazing angles, of 0.3 times the head-on one). A cost and reflection estimate (`pass.rs`), one
 /// evaluation instead of a polygon's contour integral at five points.
 pub(super) fn point_form_factor(
     shooter: &ElementRoot,
@@ -72,7 +72,7 @@ pub(super) fn point_form_factor(
 }
 
 /// Where a far link to `root` is evaluated: its centre, or the centre's stand-in on the face
-/// of an extended root. The same every shot: computed once per root (`shooting.rs`).
+/// of an extended root. The same every shot: computed once per root (`shooting.rs`, for `pass.rs`).
 pub(super) fn link_point(root: &ElementRoot) -> DVec3 {
     let st = match root.shape {
         Shape::Triangle => DVec2::splat(1.0 / 3.0),

@@ -26,6 +26,7 @@ pub(crate) mod lights;
 pub(crate) mod node_reflectance;
 mod node_sums;
 mod oracle;
+mod pass;
 mod progress;
 pub(crate) mod quadrature;
 mod refine;

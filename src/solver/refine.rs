@@ -74,7 +74,7 @@ pub(super) struct ShotContext<'a> {
     pub link_records: &'a Mutex<LinkBytes>,
     pub cancel: &'a AtomicBool,
     /// When the time budget ends (`SolverParams::max_seconds`): a pass still running then takes
-    /// no further piece of receivers (`shooting::shoot`).
+    /// no further piece of receivers (`pass::shoot`).
     pub deadline: Option<std::time::Instant>,
     /// Each root's bounding sphere (`far_field.rs`).
     pub spheres: &'a [Sphere],

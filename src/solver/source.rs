@@ -39,7 +39,7 @@ pub(super) enum Rays {
     /// One ray per receiver point, to the source's centre, its verdict standing for every sample
     /// of the source (as a far link's one ray does): an indirect shot's link to a receiver apart
     /// from the shooter that would get a small share of the threshold with no occluder
-    /// (`shooting::centre_rays_suffice`), and the links the oracle refines it into (the node-sum
+    /// (`pass::centre_rays_suffice`), and the links the oracle refines it into (the node-sum
     /// check re-sends its links tracing). No ray checks the oracle's verdict
     /// (`transfer::tests::centre_rays_trace_one_ray_per_point_and_give_all_or_nothing`).
     Centre,
