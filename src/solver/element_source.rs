@@ -5,7 +5,10 @@
 //! point (one in all for a far link, one per receiver point on [`Rays::Centre`]), scaled to the
 //! exact form factor (or, beyond the distance where the rule's own sum is within `1e-4` of the
 //! head-on value, `kernel::rule_suffices_radii`, to that sum; a far link takes the sum there on a
-//! partly covered element too), and the reciprocity check.
+//! partly covered element too), and the reciprocity check. Where a receiver point's tangent
+//! plane cuts a native or wholly covered parallelogram behind some of its rule points, the rule
+//! is carried onto the part in front ([`FrontMap`]), so the rays sample what the form factor
+//! counts.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -15,6 +18,7 @@ use super::cover::NodeCover;
 use super::element::{
     partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, Patch,
 };
+use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
 use super::kernel;
 use super::quadrature::{self, QuadPoint};
@@ -23,7 +27,7 @@ use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
 use super::source::{PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
-use crate::domain::{ElementRoot, ElementStatus};
+use crate::domain::{ElementRoot, ElementStatus, Shape};
 use crate::scene::Rgb;
 use glam::{DVec2, DVec3};
 use std::cell::OnceCell;
@@ -453,6 +457,115 @@ impl<'s> ElementSource<'s> {
         out
     }
 
+    /// The rule carried onto the part of the element in front of receiver point `x`'s plane
+    /// (normal `n`), when some emitting rule point lies behind it: the rule's points there
+    /// exchange no light, and those in front sample the front part unevenly (under an eave, a
+    /// sky element cut by the wall's plane kept one column of points far from the wall, all of
+    /// them seen past the eave, while its front part nearest the wall, which the eave hides,
+    /// had no point). Only native or fully covered parallelograms (a partly covered element's
+    /// points are tied to the face inside it). `None` when no emitting point lies behind.
+    ///
+    /// The front part `{h > 0}` of the unit square, `h` affine (the height over the receiver's
+    /// plane), is mapped from the whole square: the outer coordinate to its range where the
+    /// front part is not empty, the inner one (the one `h` varies most along) to the front
+    /// interval at that outer value; each point's weight takes the map's Jacobian, so the
+    /// points are a quadrature of the front part (`front_map::tests`).
+    fn front_rule(&self, x: DVec3, n: DVec3) -> Option<FrontRule> {
+        if self.root.shape != Shape::Parallelogram
+            || self.partial
+            || self
+                .src
+                .cover
+                .is_some_and(|c| c.status != ElementStatus::Full)
+        {
+            return None;
+        }
+        let behind =
+            (0..self.rule.len()).any(|l| self.alpha[l] > 0.0 && (self.ys[l] - x).dot(n) <= 0.0);
+        if !behind {
+            return None;
+        }
+        let h0 = (self.patch.origin - x).dot(n);
+        let map = FrontMap::new(h0, self.patch.u.dot(n), self.patch.v.dot(n))?;
+        let basis = self.shot.bases.of(self.root.shape);
+        let ns = basis.len();
+        let mut rule = FrontRule {
+            points: [DVec3::ZERO; POINTS],
+            weights: [0.0; POINTS],
+            radiosity: [[0.0; 3]; POINTS],
+            len: 0,
+        };
+        let mut phi = [0.0; MAX_FUNCTIONS];
+        for q in self.rule {
+            let (st, jacobian) = map.apply(q.st);
+            let i = rule.len;
+            rule.points[i] = self.patch.point(st);
+            rule.weights[i] = q.weight * jacobian;
+            basis.eval(st, &mut phi);
+            for bfn in 0..ns {
+                for ch in 0..3 {
+                    rule.radiosity[i][ch] += phi[bfn] * self.src.coeffs[bfn][ch];
+                }
+            }
+            rule.len += 1;
+        }
+        Some(rule)
+    }
+
+    /// What the source delivers at `x` (normal `n`, exact form factor `f`) sampled by the
+    /// `front` rule: one shadow ray per point, the visible points' kernel-weighted radiosity
+    /// scaled to `f`, as [`ElementSource::with_verdicts`] does with the element's own rule.
+    /// `None` when no front point exchanges light (a sliver of front part at grazing angles).
+    fn front_irradiance(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        f: f64,
+        ignore: [u32; 2],
+        front: &FrontRule,
+    ) -> Option<PointIrradiance> {
+        let k = front.len;
+        let mut terms = [0.0; POINTS];
+        let mut fq = 0.0;
+        for i in 0..k {
+            terms[i] = kernel::geometric_kernel(x, n, front.points[i], self.root.normal)
+                * self.patch.area
+                * front.weights[i];
+            fq += terms[i];
+        }
+        if fq <= 0.0 {
+            return None;
+        }
+        let visibility = self.shot.visibility;
+        let seen = visibility.visible_from(x, &front.points[..k], ignore);
+        visibility.count_rays(k as u64);
+        let unoccluded = f * self.strength;
+        let mut out = PointIrradiance {
+            unoccluded,
+            form_factor: f,
+            ..PointIrradiance::default()
+        };
+        let (mut e, mut visible) = ([0.0; 3], 0.0);
+        for i in 0..k {
+            if terms[i] <= 0.0 {
+                continue;
+            }
+            if seen >> i & 1 == 1 {
+                out.any_visible = true;
+                visible += terms[i];
+                for ch in 0..3 {
+                    e[ch] += terms[i] * front.radiosity[i][ch];
+                }
+            } else {
+                out.any_blocked = true;
+            }
+        }
+        let v = visible / fq;
+        out.source_side_err = unoccluded * 2.0 * v.min(1.0 - v).max(0.0);
+        out.e = e.map(|c| c * f / fq);
+        Some(out)
+    }
+
     /// The irradiance of a far link at `x` (normal `n`): [`Source::irradiance_at`] with one
     /// shadow ray, to the source's centre, standing for every rule point's (0 when it is
     /// blocked), and beyond the rule's radii ([`Emitter::far_in_front`]) the rule's sum for the
@@ -518,6 +631,11 @@ impl Source for ElementSource<'_> {
                 return Some(self.with_verdicts(x, n, f, self.centre_verdict(x, ignore)));
             }
             Rays::Trace => {}
+        }
+        if let Some(front) = self.front_rule(x, n) {
+            if let Some(out) = self.front_irradiance(x, n, f, ignore, &front) {
+                return Some(out);
+            }
         }
         let visibility = self.shot.visibility;
         // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the
@@ -623,94 +741,15 @@ impl Source for ElementSource<'_> {
 /// 2.7 %; 64 leave a margin, for 2-25 % more rays in the reference scenes).
 const SPREAD_RAYS: usize = 64;
 
-#[cfg(test)]
-pub(super) mod tests {
-    use super::*;
-    use crate::domain::Shape;
-    use crate::solver::basis::Basis;
-    use crate::solver::element::tests::parallelogram_root;
-
-    /// A shot of `roots[0]` (direct or not), with no stored face means and a 1 mm smallest edge.
-    pub(in crate::solver) fn shot_of_first_root<'a>(
-        roots: &'a [ElementRoot],
-        (bases, rules): (&'a Bases, &'a Rules),
-        visibility: &'a Visibility,
-        hierarchy: &'a Hierarchy,
-        direct: bool,
-    ) -> ElementShot<'a> {
-        ElementShot {
-            roots,
-            bases,
-            rules,
-            visibility,
-            source_root: 0,
-            source_hierarchy: hierarchy,
-            direct,
-            source_face_means: None,
-            min_edge: 1e-3,
-        }
-    }
-
-    /// A far link on a partly covered source (a unit square with a centred hole of half its side,
-    /// shooting as one element with its face's rings) takes the rule's sum for the form factor
-    /// beyond the rule's radii, where a near link takes the exact contour integral of the rings:
-    /// the far link's irradiance over the near link's is the rule's sum over the exact form
-    /// factor, which differ there. Nearer than the radii both take the exact one.
-    #[test]
-    fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
-        let order = 2;
-        let (bases, rules) = (Bases::new(order), Rules::new(order));
-        let basis = Basis::new(Shape::Parallelogram, order);
-        let n = basis.len();
-        let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
-        let mask = crate::solver::cover::tests::holed(0.5);
-        let cover = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
-        assert_eq!(cover.status, ElementStatus::Partial);
-        source.mask = Some(mask);
-        source.face_area_m2 = 0.75;
-        source.exitance = [1.0; 3];
-        let roots = [source];
-        let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-        coeffs[0] = roots[0].exitance;
-        let element = SourceElement::root(&roots[0], coeffs, n, Some(cover), None);
-        assert!(
-            element.rings.is_some(),
-            "a partly covered element has rings"
-        );
-        let hierarchy = Hierarchy::new(n);
-        let visibility = Visibility::new(Vec::new(), 30.0);
-        let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
-        let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
-        let ignore = source.ignored_faces(1);
-        let (down, radii) = (-DVec3::Z, rules.form_factor_radii);
-        let radius = 0.5f64.sqrt();
-        // Off the centre's axis, so that the hole does not sit symmetrically under the point.
-        let above = |z: f64| DVec3::new(0.8, 0.3, z);
-        let ratio = |x: DVec3| {
-            let far = source.far_irradiance_at(x, down, ignore).expect("in front");
-            let near = source
-                .irradiance_at(x, down, ignore, Rays::Trace)
-                .expect("in front")
-                .e;
-            far[0] / near[0]
-        };
-        let x = above(radii * radius * 1.05);
-        let (rule, exact) = (
-            source.rule_form_factor(x, down),
-            source.form_factor(x, down),
-        );
-        assert!(
-            (rule / exact - 1.0).abs() > 1e-4,
-            "the rule {rule} and the rings {exact} must differ for the check to mean anything"
-        );
-        let r = ratio(x);
-        assert!(
-            (r - rule / exact).abs() < 1e-12,
-            "{r} against {}",
-            rule / exact
-        );
-        // Nearer than the radii, the far link takes the rings' exact form factor too.
-        let r = ratio(above(radii * radius * 0.9));
-        assert!((r - 1.0).abs() < 1e-12, "{r}");
-    }
+/// An element's rule carried onto its part in front of a receiver point's plane
+/// ([`ElementSource::front_rule`]): the points, their weights (the rule's times the map's
+/// Jacobian, summing to the front part's share of the element) and the radiosity there.
+struct FrontRule {
+    points: [DVec3; POINTS],
+    weights: [f64; POINTS],
+    radiosity: [Rgb; POINTS],
+    len: usize,
 }
+
+#[cfg(test)]
+pub(super) mod tests;

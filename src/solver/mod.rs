@@ -19,6 +19,7 @@ mod element;
 mod element_source;
 mod eta;
 mod far_field;
+mod front_map;
 pub(crate) mod hierarchy;
 mod indirect_forecast;
 pub mod kernel;

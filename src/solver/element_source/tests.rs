@@ -1,0 +1,160 @@
+use super::*;
+use crate::domain::Shape;
+use crate::solver::basis::Basis;
+use crate::solver::element::tests::parallelogram_root;
+
+/// A shot of `roots[0]` (direct or not), with no stored face means and a 1 mm smallest edge.
+pub(in crate::solver) fn shot_of_first_root<'a>(
+    roots: &'a [ElementRoot],
+    (bases, rules): (&'a Bases, &'a Rules),
+    visibility: &'a Visibility,
+    hierarchy: &'a Hierarchy,
+    direct: bool,
+) -> ElementShot<'a> {
+    ElementShot {
+        roots,
+        bases,
+        rules,
+        visibility,
+        source_root: 0,
+        source_hierarchy: hierarchy,
+        direct,
+        source_face_means: None,
+        min_edge: 1e-3,
+    }
+}
+
+/// A far link on a partly covered source (a unit square with a centred hole of half its side,
+/// shooting as one element with its face's rings) takes the rule's sum for the form factor
+/// beyond the rule's radii, where a near link takes the exact contour integral of the rings:
+/// the far link's irradiance over the near link's is the rule's sum over the exact form
+/// factor, which differ there. Nearer than the radii both take the exact one.
+#[test]
+fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
+    let order = 2;
+    let (bases, rules) = (Bases::new(order), Rules::new(order));
+    let basis = Basis::new(Shape::Parallelogram, order);
+    let n = basis.len();
+    let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
+    let mask = crate::solver::cover::tests::holed(0.5);
+    let cover = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
+    assert_eq!(cover.status, ElementStatus::Partial);
+    source.mask = Some(mask);
+    source.face_area_m2 = 0.75;
+    source.exitance = [1.0; 3];
+    let roots = [source];
+    let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+    coeffs[0] = roots[0].exitance;
+    let element = SourceElement::root(&roots[0], coeffs, n, Some(cover), None);
+    assert!(
+        element.rings.is_some(),
+        "a partly covered element has rings"
+    );
+    let hierarchy = Hierarchy::new(n);
+    let visibility = Visibility::new(Vec::new(), 30.0);
+    let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
+    let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+    let ignore = source.ignored_faces(1);
+    let (down, radii) = (-DVec3::Z, rules.form_factor_radii);
+    let radius = 0.5f64.sqrt();
+    // Off the centre's axis, so that the hole does not sit symmetrically under the point.
+    let above = |z: f64| DVec3::new(0.8, 0.3, z);
+    let ratio = |x: DVec3| {
+        let far = source.far_irradiance_at(x, down, ignore).expect("in front");
+        let near = source
+            .irradiance_at(x, down, ignore, Rays::Trace)
+            .expect("in front")
+            .e;
+        far[0] / near[0]
+    };
+    let x = above(radii * radius * 1.05);
+    let (rule, exact) = (
+        source.rule_form_factor(x, down),
+        source.form_factor(x, down),
+    );
+    assert!(
+        (rule / exact - 1.0).abs() > 1e-4,
+        "the rule {rule} and the rings {exact} must differ for the check to mean anything"
+    );
+    let r = ratio(x);
+    assert!(
+        (r - rule / exact).abs() < 1e-12,
+        "{r} against {}",
+        rule / exact
+    );
+    // Nearer than the radii, the far link takes the rings' exact form factor too.
+    let r = ratio(above(radii * radius * 0.9));
+    assert!((r - 1.0).abs() < 1e-12, "{r}");
+}
+
+/// A sky over a wall with an eave: from a point on the wall 2 cm under a 5 cm eave, a large
+/// emitter cut by the wall's plane is seen only far out, past the eave's edge. With M1's
+/// four points the front part is sampled as a whole (the rule carried onto it), not by the
+/// one column of points that happens to lie in front of the wall, which all see past the
+/// eave and gave the unshadowed wall's light (the Kenney building's eaves at M1,
+/// docs/accuracy.md). Against the same irradiance from a fine grid over the source.
+#[test]
+fn a_source_cut_by_the_receivers_plane_is_sampled_in_front_of_it() {
+    let order = 1;
+    let (bases, rules) = (Bases::new(order), Rules::new(order));
+    let n = Basis::new(Shape::Parallelogram, order).len();
+    // The sky: 3 m x 3 m at y = 0.2, facing down; the wall's plane x = 0 cuts it in two.
+    let mut sky = parallelogram_root(
+        DVec3::new(-1.5, 0.2, -1.5),
+        DVec3::new(3.0, 0.0, 0.0),
+        DVec3::new(0.0, 0.0, 3.0),
+    );
+    assert!(sky.normal.y < -0.99);
+    sky.exitance = [1.0; 3];
+    let roots = [sky];
+    let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+    coeffs[0] = roots[0].exitance;
+    let element = SourceElement::root(&roots[0], coeffs, n, None, None);
+    // The eave: y = 0, from x = -0.3 (over the building) to 0.05 (out from the wall).
+    let (a, b) = (DVec3::new(-0.3, 0.0, -2.0), DVec3::new(0.05, 0.0, -2.0));
+    let (c, d) = (DVec3::new(0.05, 0.0, 2.0), DVec3::new(-0.3, 0.0, 2.0));
+    let visibility = Visibility::new([([a, b, c], 7), ([a, c, d], 7)], 10.0);
+    let hierarchy = Hierarchy::new(n);
+    let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
+    let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+    let (x, normal) = (DVec3::new(1e-4, -0.02, 0.1), DVec3::X);
+    let ignore = source.ignored_faces(1);
+    let got = source
+        .irradiance_at(x, normal, ignore, Rays::Trace)
+        .expect("in front")
+        .e[0];
+    // The same integral on a grid of the source, the eave decided exactly.
+    let grid = 600;
+    let mut exact = 0.0;
+    let mut unoccluded = 0.0;
+    for i in 0..grid {
+        for j in 0..grid {
+            let y = DVec3::new(
+                -1.5 + 3.0 * (i as f64 + 0.5) / grid as f64,
+                0.2,
+                -1.5 + 3.0 * (j as f64 + 0.5) / grid as f64,
+            );
+            let k = kernel::geometric_kernel(x, normal, y, roots[0].normal) * 9.0
+                / (grid * grid) as f64;
+            // Where the segment crosses the eave's plane y = 0.
+            let t = (0.0 - x.y) / (y.y - x.y);
+            let crossing = x + (y - x) * t;
+            let blocked = (-0.3..=0.05).contains(&crossing.x);
+            unoccluded += k;
+            if !blocked {
+                exact += k;
+            }
+        }
+    }
+    assert!(
+        exact < 0.5 * unoccluded,
+        "the eave must hide most of the sky: {exact} of {unoccluded}"
+    );
+    // Four samples of a front part the eave's shadow crosses: within half the exact value,
+    // where the column of rule points in front (all seen past the eave) gave the unoccluded
+    // value, four times it.
+    assert!(
+        (got - exact).abs() < 0.5 * exact,
+        "{got} against {exact} (unoccluded {unoccluded})"
+    );
+}
