@@ -6,9 +6,9 @@
 //! exact form factor (or, beyond the distance where the rule's own sum is within `1e-4` of the
 //! head-on value, `kernel::rule_suffices_radii`, to that sum; a far link takes the sum there on a
 //! partly covered element too), and the reciprocity check. Where a receiver point's tangent
-//! plane cuts a native or wholly covered parallelogram behind some of its rule points, the rule
-//! is carried onto the part in front ([`FrontMap`]), so the rays sample what the form factor
-//! counts.
+//! plane cuts a native or wholly covered element behind some of its rule points, the rule is
+//! carried onto the part in front ([`FrontMap`]), so the rays sample what the form factor
+//! counts (on every path but a far link's one ray).
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -27,7 +27,7 @@ use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
 use super::source::{PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
-use crate::domain::{ElementRoot, ElementStatus, Shape};
+use crate::domain::{ElementRoot, ElementStatus};
 use crate::scene::Rgb;
 use glam::{DVec2, DVec3};
 use std::cell::OnceCell;
@@ -462,17 +462,12 @@ impl<'s> ElementSource<'s> {
     /// exchange no light, and those in front sample the front part unevenly (under an eave, a
     /// sky element cut by the wall's plane kept one column of points far from the wall, all of
     /// them seen past the eave, while its front part nearest the wall, which the eave hides,
-    /// had no point). Only native or fully covered parallelograms (a partly covered element's
-    /// points are tied to the face inside it). `None` when no emitting point lies behind.
-    ///
-    /// The front part `{h > 0}` of the unit square, `h` affine (the height over the receiver's
-    /// plane), is mapped from the whole square: the outer coordinate to its range where the
-    /// front part is not empty, the inner one (the one `h` varies most along) to the front
-    /// interval at that outer value; each point's weight takes the map's Jacobian, so the
-    /// points are a quadrature of the front part (`front_map::tests`).
+    /// had no point). Native elements and wholly covered ones of an extended root (a partly
+    /// covered element's points are tied to the face inside it). `None` when no emitting point
+    /// lies behind. The map, and the test that pins it as a quadrature of the front part:
+    /// `front_map.rs`.
     fn front_rule(&self, x: DVec3, n: DVec3) -> Option<FrontRule> {
-        if self.root.shape != Shape::Parallelogram
-            || self.partial
+        if self.partial
             || self
                 .src
                 .cover
@@ -486,7 +481,12 @@ impl<'s> ElementSource<'s> {
             return None;
         }
         let h0 = (self.patch.origin - x).dot(n);
-        let map = FrontMap::new(h0, self.patch.u.dot(n), self.patch.v.dot(n))?;
+        let map = FrontMap::new(
+            self.root.shape,
+            h0,
+            self.patch.u.dot(n),
+            self.patch.v.dot(n),
+        )?;
         let basis = self.shot.bases.of(self.root.shape);
         let ns = basis.len();
         let mut rule = FrontRule {
@@ -513,16 +513,17 @@ impl<'s> ElementSource<'s> {
     }
 
     /// What the source delivers at `x` (normal `n`, exact form factor `f`) sampled by the
-    /// `front` rule: one shadow ray per point, the visible points' kernel-weighted radiosity
-    /// scaled to `f`, as [`ElementSource::with_verdicts`] does with the element's own rule.
-    /// `None` when no front point exchanges light (a sliver of front part at grazing angles).
+    /// `front` rule, its shadow rays decided as `rays` says (one per point; every point seen; or
+    /// one ray, to the front part's centroid, for all of them): the visible points'
+    /// kernel-weighted radiosity scaled to `f`, and the flags and the sampling error as
+    /// [`ElementSource::with_verdicts`] gives them with the element's own rule. `None` when no
+    /// front point exchanges light (a sliver of front part at grazing angles).
     fn front_irradiance(
         &self,
-        x: DVec3,
-        n: DVec3,
-        f: f64,
+        (x, n, f): (DVec3, DVec3, f64),
         ignore: [u32; 2],
         front: &FrontRule,
+        rays: Rays,
     ) -> Option<PointIrradiance> {
         let k = front.len;
         let mut terms = [0.0; POINTS];
@@ -537,22 +538,42 @@ impl<'s> ElementSource<'s> {
             return None;
         }
         let visibility = self.shot.visibility;
-        let seen = visibility.visible_from(x, &front.points[..k], ignore);
-        visibility.count_rays(k as u64);
+        let seen = match rays {
+            Rays::Trace => {
+                visibility.count_rays(k as u64);
+                visibility.visible_from(x, &front.points[..k], ignore)
+            }
+            Rays::AllPass => u64::MAX,
+            Rays::Centre => {
+                let w: f64 = front.weights[..k].iter().sum();
+                let centroid = (0..k)
+                    .map(|i| front.points[i] * front.weights[i])
+                    .sum::<DVec3>()
+                    / w;
+                visibility.count_rays(1);
+                if visibility.visible_from(x, &[centroid], ignore) & 1 == 1 {
+                    u64::MAX
+                } else {
+                    0
+                }
+            }
+        };
         let unoccluded = f * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
             form_factor: f,
             ..PointIrradiance::default()
         };
-        let (mut e, mut visible) = ([0.0; 3], 0.0);
+        let mut e = [0.0; 3];
+        let (mut front_weight, mut front_visible) = (0.0, 0.0);
         for i in 0..k {
             if terms[i] <= 0.0 {
                 continue;
             }
+            front_weight += front.weights[i];
             if seen >> i & 1 == 1 {
                 out.any_visible = true;
-                visible += terms[i];
+                front_visible += front.weights[i];
                 for ch in 0..3 {
                     e[ch] += terms[i] * front.radiosity[i][ch];
                 }
@@ -560,7 +581,7 @@ impl<'s> ElementSource<'s> {
                 out.any_blocked = true;
             }
         }
-        let v = visible / fq;
+        let v = front_visible / front_weight;
         out.source_side_err = unoccluded * 2.0 * v.min(1.0 - v).max(0.0);
         out.e = e.map(|c| c * f / fq);
         Some(out)
@@ -625,17 +646,17 @@ impl Source for ElementSource<'_> {
         if f <= 0.0 {
             return None;
         }
+        if let Some(front) = self.front_rule(x, n) {
+            if let Some(out) = self.front_irradiance((x, n, f), ignore, &front, rays) {
+                return Some(out);
+            }
+        }
         match rays {
             Rays::AllPass => return Some(self.with_verdicts(x, n, f, u64::MAX)),
             Rays::Centre => {
                 return Some(self.with_verdicts(x, n, f, self.centre_verdict(x, ignore)));
             }
             Rays::Trace => {}
-        }
-        if let Some(front) = self.front_rule(x, n) {
-            if let Some(out) = self.front_irradiance(x, n, f, ignore, &front) {
-                return Some(out);
-            }
         }
         let visibility = self.shot.visibility;
         // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the

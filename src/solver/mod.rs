@@ -175,7 +175,9 @@ pub struct SolveStats {
     /// Transfers accepted above tolerance because neither side could be split further.
     pub refinement_capped: u64,
     /// Receiver points where no source quadrature point lay in front of the receiver (touching
-    /// elements): the exact form factor times the visible fraction stood in for the quadrature.
+    /// elements) and the rule could not be carried onto the source's part in front (a partly
+    /// covered source, or no front point exchanging light): the exact form factor times the
+    /// visible fraction stood in for the quadrature.
     pub touching_fallbacks: u64,
     /// Receiver nodes that gave links back to their children after a shot, because the
     /// sum of their links was not represented within the tolerance (`SolverParams::node_sums`).
