@@ -1,3 +1,7 @@
+//! `ElementSource` pinned against independent values: a far link's form factor on a partly
+//! covered source, and a source cut by the receiver's plane under an eave against a fine grid of
+//! the source with the eave decided exactly.
+
 use super::*;
 use crate::domain::Shape;
 use crate::solver::basis::Basis;
@@ -87,12 +91,53 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
     assert!((r - 1.0).abs() < 1e-12, "{r}");
 }
 
+/// The eave of the two tests below: the plane y = 0 from x = -0.3 (over the building) to 0.05
+/// (out from the wall x = 0), 4 m long.
+const EAVE_X: std::ops::RangeInclusive<f64> = -0.3..=0.05;
+
+fn eave() -> Visibility {
+    let (x0, x1) = (*EAVE_X.start(), *EAVE_X.end());
+    let (a, b) = (DVec3::new(x0, 0.0, -2.0), DVec3::new(x1, 0.0, -2.0));
+    let (c, d) = (DVec3::new(x1, 0.0, 2.0), DVec3::new(x0, 0.0, 2.0));
+    Visibility::new([([a, b, c], 7), ([a, c, d], 7)], 10.0)
+}
+
+/// The receiving point of the two tests below: on the wall x = 0, 2 cm under the eave.
+const UNDER_THE_EAVE: DVec3 = DVec3::new(1e-4, -0.02, 0.1);
+
+/// The irradiance at [`UNDER_THE_EAVE`] (facing +x) from the parallelogram `root` (its frame
+/// the source) of radiosity `radiosity(st)`, on a 600 x 600 midpoint grid with the eave decided
+/// exactly: what passes the eave, and everything in front of the wall.
+fn fine_grid(root: &ElementRoot, radiosity: impl Fn(DVec2) -> f64) -> (f64, f64) {
+    let (x, normal, f) = (UNDER_THE_EAVE, DVec3::X, &root.frame);
+    let grid = 600;
+    let cell = f.u.cross(f.v).length() / (grid * grid) as f64;
+    let (mut passing, mut unoccluded) = (0.0, 0.0);
+    for i in 0..grid {
+        for j in 0..grid {
+            let st = DVec2::new(
+                (i as f64 + 0.5) / grid as f64,
+                (j as f64 + 0.5) / grid as f64,
+            );
+            let y = f.point(st);
+            let k = kernel::geometric_kernel(x, normal, y, root.normal) * cell * radiosity(st);
+            // Where the segment crosses the eave's plane y = 0.
+            let crossing = x + (y - x) * ((0.0 - x.y) / (y.y - x.y));
+            unoccluded += k;
+            if !EAVE_X.contains(&crossing.x) {
+                passing += k;
+            }
+        }
+    }
+    (passing, unoccluded)
+}
+
 /// A sky over a wall with an eave: from a point on the wall 2 cm under a 5 cm eave, a large
 /// emitter cut by the wall's plane is seen only far out, past the eave's edge. With M1's
 /// four points the front part is sampled as a whole (the rule carried onto it), not by the
 /// one column of points that happens to lie in front of the wall, which all see past the
 /// eave and gave the unshadowed wall's light (the Kenney building's eaves at M1,
-/// docs/accuracy.md). Against the same irradiance from a fine grid over the source.
+/// docs/accuracy-history.md). Against the same irradiance from a fine grid over the source.
 #[test]
 fn a_source_cut_by_the_receivers_plane_is_sampled_in_front_of_it() {
     let order = 1;
@@ -110,42 +155,20 @@ fn a_source_cut_by_the_receivers_plane_is_sampled_in_front_of_it() {
     let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
     coeffs[0] = roots[0].exitance;
     let element = SourceElement::root(&roots[0], coeffs, n, None, None);
-    // The eave: y = 0, from x = -0.3 (over the building) to 0.05 (out from the wall).
-    let (a, b) = (DVec3::new(-0.3, 0.0, -2.0), DVec3::new(0.05, 0.0, -2.0));
-    let (c, d) = (DVec3::new(0.05, 0.0, 2.0), DVec3::new(-0.3, 0.0, 2.0));
-    let visibility = Visibility::new([([a, b, c], 7), ([a, c, d], 7)], 10.0);
+    let visibility = eave();
     let hierarchy = Hierarchy::new(n);
     let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
     let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
-    let (x, normal) = (DVec3::new(1e-4, -0.02, 0.1), DVec3::X);
-    let ignore = source.ignored_faces(1);
     let got = source
-        .irradiance_at(x, normal, ignore, Rays::Trace)
+        .irradiance_at(
+            UNDER_THE_EAVE,
+            DVec3::X,
+            source.ignored_faces(1),
+            Rays::Trace,
+        )
         .expect("in front")
         .e[0];
-    // The same integral on a grid of the source, the eave decided exactly.
-    let grid = 600;
-    let mut exact = 0.0;
-    let mut unoccluded = 0.0;
-    for i in 0..grid {
-        for j in 0..grid {
-            let y = DVec3::new(
-                -1.5 + 3.0 * (i as f64 + 0.5) / grid as f64,
-                0.2,
-                -1.5 + 3.0 * (j as f64 + 0.5) / grid as f64,
-            );
-            let k = kernel::geometric_kernel(x, normal, y, roots[0].normal) * 9.0
-                / (grid * grid) as f64;
-            // Where the segment crosses the eave's plane y = 0.
-            let t = (0.0 - x.y) / (y.y - x.y);
-            let crossing = x + (y - x) * t;
-            let blocked = (-0.3..=0.05).contains(&crossing.x);
-            unoccluded += k;
-            if !blocked {
-                exact += k;
-            }
-        }
-    }
+    let (exact, unoccluded) = fine_grid(&roots[0], |_| 1.0);
     assert!(
         exact < 0.5 * unoccluded,
         "the eave must hide most of the sky: {exact} of {unoccluded}"
@@ -174,8 +197,7 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
         DVec3::new(3.0 * c, 0.0, -3.0 * s),
         DVec3::new(3.0 * s, 0.0, 3.0 * c),
     );
-    let origin = DVec3::new(0.0, 0.2, 0.0) - 0.5 * (u + v);
-    let sky = parallelogram_root(origin, u, v);
+    let sky = parallelogram_root(DVec3::new(0.0, 0.2, 0.0) - 0.5 * (u + v), u, v);
     assert!(sky.normal.y < -0.99);
     let roots = [sky];
     let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
@@ -183,16 +205,18 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
     coeffs[1] = [0.3; 3];
     coeffs[2] = [-0.2; 3];
     let element = SourceElement::root(&roots[0], coeffs, n, None, None);
-    let (a, b) = (DVec3::new(-0.3, 0.0, -2.0), DVec3::new(0.05, 0.0, -2.0));
-    let (cc, d) = (DVec3::new(0.05, 0.0, 2.0), DVec3::new(-0.3, 0.0, 2.0));
-    let visibility = Visibility::new([([a, b, cc], 7), ([a, cc, d], 7)], 10.0);
+    let visibility = eave();
     let hierarchy = Hierarchy::new(n);
     let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, false);
     let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
-    let (x, normal) = (DVec3::new(1e-4, -0.02, 0.1), DVec3::X);
     let rays_before = visibility.rays_traced();
     let got = source
-        .irradiance_at(x, normal, source.ignored_faces(1), Rays::Trace)
+        .irradiance_at(
+            UNDER_THE_EAVE,
+            DVec3::X,
+            source.ignored_faces(1),
+            Rays::Trace,
+        )
         .expect("in front");
     assert_eq!(
         visibility.rays_traced() - rays_before,
@@ -202,34 +226,15 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
         got.any_visible && got.any_blocked,
         "the eave's shadow crosses the front part"
     );
-    let grid = 600;
-    let (mut exact, mut front_points_value) = (0.0, 0.0);
-    let mut phi = [0.0; MAX_FUNCTIONS];
-    for i in 0..grid {
-        for j in 0..grid {
-            let st = DVec2::new(
-                (i as f64 + 0.5) / grid as f64,
-                (j as f64 + 0.5) / grid as f64,
-            );
-            let y = origin + u * st.x + v * st.y;
-            basis.eval(st, &mut phi[..n]);
-            let radiosity: f64 = (0..n).map(|k| phi[k] * coeffs[k][0]).sum();
-            let k = kernel::geometric_kernel(x, normal, y, roots[0].normal) * 9.0
-                / (grid * grid) as f64;
-            let crossing = x + (y - x) * ((0.0 - x.y) / (y.y - x.y));
-            front_points_value += k * radiosity;
-            if !(-0.3..=0.05).contains(&crossing.x) {
-                exact += k * radiosity;
-            }
-        }
-    }
-    assert!(
-        exact < 0.5 * front_points_value,
-        "{exact} of {front_points_value}"
-    );
+    let (exact, unoccluded) = fine_grid(&roots[0], |st| {
+        let mut phi = [0.0; MAX_FUNCTIONS];
+        basis.eval(st, &mut phi[..n]);
+        (0..n).map(|k| phi[k] * coeffs[k][0]).sum()
+    });
+    assert!(exact < 0.5 * unoccluded, "{exact} of {unoccluded}");
     assert!(
         (got.e[0] - exact).abs() < 0.25 * exact,
-        "{} against {exact} (unoccluded {front_points_value})",
+        "{} against {exact} (unoccluded {unoccluded})",
         got.e[0]
     );
 }
