@@ -473,20 +473,14 @@ pub(super) mod tests {
         let mut phi = [0.0; MAX_FUNCTIONS];
         for (node, mean) in means.iter().enumerate() {
             let (mut sum, mut count) = (0.0, 0usize);
-            for gi in 0..grid {
-                for gj in 0..grid {
-                    let p = DVec2::new(
-                        (gi as f64 + 0.5) / grid as f64,
-                        (gj as f64 + 0.5) / grid as f64,
-                    );
-                    if !inside(node, p) || !mask.contains(p) {
-                        continue;
-                    }
-                    let leaf = *leaves.iter().find(|&&l| inside(l, p)).expect("a leaf");
-                    basis.eval(h.nodes[leaf].map.local(p), &mut phi);
-                    sum += (0..n).map(|a| phi[a] * h.u[leaf * n + a][0]).sum::<f64>();
-                    count += 1;
+            for p in crate::solver::quadrature::unit_square_midpoints(grid) {
+                if !inside(node, p) || !mask.contains(p) {
+                    continue;
                 }
+                let leaf = *leaves.iter().find(|&&l| inside(l, p)).expect("a leaf");
+                basis.eval(h.nodes[leaf].map.local(p), &mut phi);
+                sum += (0..n).map(|a| phi[a] * h.u[leaf * n + a][0]).sum::<f64>();
+                count += 1;
             }
             let brute = sum / count as f64;
             assert!(

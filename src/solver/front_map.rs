@@ -126,17 +126,11 @@ mod tests {
             Shape::Triangle => 0.5,
         };
         let (mut share, mut moment) = (0.0, 0.0);
-        for i in 0..grid {
-            for j in 0..grid {
-                let st = DVec2::new(
-                    (i as f64 + 0.5) / grid as f64,
-                    (j as f64 + 0.5) / grid as f64,
-                );
-                let inside = shape == Shape::Parallelogram || st.x + st.y < 1.0;
-                if inside && h(st) > 0.0 {
-                    share += cell / area;
-                    moment += st.x * st.y * cell / area;
-                }
+        for st in quadrature::unit_square_midpoints(grid) {
+            let inside = shape == Shape::Parallelogram || st.x + st.y < 1.0;
+            if inside && h(st) > 0.0 {
+                share += cell / area;
+                moment += st.x * st.y * cell / area;
             }
         }
         (share, moment)

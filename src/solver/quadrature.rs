@@ -131,6 +131,14 @@ pub fn inset_into(shape: Shape, p: DVec2, inset: f64) -> DVec2 {
     }
 }
 
+/// The centres of a `grid` x `grid` partition of the unit square, `s` the outer coordinate: the
+/// brute-force twin that tests integrate against.
+#[cfg(test)]
+pub(super) fn unit_square_midpoints(grid: usize) -> impl Iterator<Item = DVec2> {
+    let at = move |k: usize| (k as f64 + 0.5) / grid as f64;
+    (0..grid).flat_map(move |i| (0..grid).map(move |j| DVec2::new(at(i), at(j))))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

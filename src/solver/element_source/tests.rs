@@ -113,20 +113,14 @@ fn fine_grid(root: &ElementRoot, radiosity: impl Fn(DVec2) -> f64) -> (f64, f64)
     let grid = 600;
     let cell = f.u.cross(f.v).length() / (grid * grid) as f64;
     let (mut passing, mut unoccluded) = (0.0, 0.0);
-    for i in 0..grid {
-        for j in 0..grid {
-            let st = DVec2::new(
-                (i as f64 + 0.5) / grid as f64,
-                (j as f64 + 0.5) / grid as f64,
-            );
-            let y = f.point(st);
-            let k = kernel::geometric_kernel(x, normal, y, root.normal) * cell * radiosity(st);
-            // Where the segment crosses the eave's plane y = 0.
-            let crossing = x + (y - x) * ((0.0 - x.y) / (y.y - x.y));
-            unoccluded += k;
-            if !EAVE_X.contains(&crossing.x) {
-                passing += k;
-            }
+    for st in quadrature::unit_square_midpoints(grid) {
+        let y = f.point(st);
+        let k = kernel::geometric_kernel(x, normal, y, root.normal) * cell * radiosity(st);
+        // Where the segment crosses the eave's plane y = 0.
+        let crossing = x + (y - x) * ((0.0 - x.y) / (y.y - x.y));
+        unoccluded += k;
+        if !EAVE_X.contains(&crossing.x) {
+            passing += k;
         }
     }
     (passing, unoccluded)
