@@ -7,6 +7,7 @@
 //! Invariants: an estimate is never negative, is capped by what is left of the time budget, and
 //! is 0 once the target is reached; nothing before the first report (`tests::eta_*`).
 
+use super::indirect_forecast::CostCurve;
 use history::{IndirectHistory, WINDOW_NATS};
 
 /// What a shot shoots, for the ETA: how many shots of its kind are left after it.
@@ -38,16 +39,9 @@ const MAX_RETURN: f64 = 0.95;
 /// Indirect shots finished, and nats shed ([`WINDOW_NATS`]), before their history alone is used
 /// (before it, the prior less the seconds since counts too, when there was a direct phase).
 const MIN_SHOTS: usize = 2;
-/// The share of the prior's seconds that must pass before the indirect shots' evidence replaces
-/// a prior priced by the foreseen shots (their first nats, the hot spots of the direct light
-/// draining, are the fastest of the phase).
-const PRIOR_TRUST: f64 = 0.25;
-/// What one indirect shot costs, in rays of the direct phase (its seconds over the rays it traced,
-/// so the machine and its load are the phase's): a shot's work is mostly near its shooter
-/// (refining its links to the roots close by), about the same per shot whatever the size of the
-/// scene; its far field is cheap (docs/performance-notes.md, "The ETA's prior counts the
-/// shots").
-const SHOT_RAYS: f64 = 50_000.0;
+/// The share of the foreseen indirect cost (`indirect_forecast.rs`) the indirect shots must
+/// have spent before their seconds weigh as much as the prior's in the price of what is left.
+const CURVE_TRUST: f64 = 0.3;
 /// Rays the direct phase must have traced before its seconds per ray price the foreseen shots
 /// (the first rays of a shot come with its set-up, and would make the first reports jump).
 const MIN_PRICED_RAYS: f64 = 1e4;
@@ -65,17 +59,21 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 ///   as `1 +` what it would receive with no occluder over the threshold (`pass.rs`).
 /// - While lights and emitters shoot (the first shot of a sky panel can be most of a solve), the
 ///   shots of their kind still queued are taken to be like this one, and what follows is the
-///   *prior*: the direct phase's seconds per W sent, times the power the indirect shots will
+///   *prior*: the indirect phase's foreseen cost (`indirect_forecast.rs`, in rays) at the
+///   direct phase's seconds per ray (`eta_prior_counts_the_cost_of_a_large_scene`). With
+///   nothing foreseen, the direct phase's seconds per W times the power the indirect shots will
 ///   send, `(U - U_target) / (1 - k)`: `U` what the phase leaves unshot (the plans' `returns`
 ///   scaled by what the receivers done so far got of theirs, until it is done; then the real
 ///   one), and `k = U / P`, `P` the power it sent, the share taken to come back at every bounce
-///   (at most [`MAX_RETURN`]). Under a sky most of the power leaves, `k` is small and the prior a
-///   fraction of the direct phase; in a closed room it is a multiple (`tests::eta_prior_*`).
-///   That prior follows the power; on a large scene the shots' count is what grows (each sheds
-///   little of a power spread over many roots), so the prior is at least the shots the indirect
-///   phase is foreseen to take (`indirect_forecast.rs`), [`SHOT_RAYS`] each at the direct
-///   phase's seconds per ray (`eta_prior_counts_the_shots_of_a_large_scene`).
-/// - Then the indirect shots are the evidence: with `u` the nats of unshot ratio shed since the
+///   (at most [`MAX_RETURN`]); under a sky a fraction of the direct phase, in a closed room a
+///   multiple (`tests::eta_prior_*`).
+/// - Then, along the foreseen cost curve: the cost from the nats shed so far to the target, at
+///   a price per ray that starts at the prior's and moves to the indirect shots' own (their
+///   seconds over the cost of the nats they shed) as that cost reaches [`CURVE_TRUST`] of the
+///   whole. The curve's shape carries the price to the target: seconds per nat that rise as
+///   the power spreads over more roots (`eta_follows_a_cost_per_nat_that_rises_as_foreseen`).
+/// - With nothing foreseen, the indirect shots are the evidence: with `u` the nats of unshot
+///   ratio shed since the
 ///   direct phase, the seconds per nat are those of the last [`WINDOW_NATS`] of the history
 ///   (taken at its middle), falling like `exp(-beta u)`, `beta` the slope of ln seconds per nat
 ///   against `u` over the history, shrunk towards a prior decay as far as its steps scatter
@@ -85,8 +83,7 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 ///   nats, the unshot power being spread over more roots, and their seconds per nat hold
 ///   (`eta_follows_cheaper_shots_that_shed_fewer_nats`). Until the history spans the window (and
 ///   [`MIN_SHOTS`]), the prior less the seconds since, the evidence weighing in as the window
-///   fills (and, when the prior is the shots', as [`PRIOR_TRUST`] of its seconds pass). The
-///   seconds left are the
+///   fills. The seconds left are the
 ///   integral down to the target, less the seconds of the shot in progress (at least what its
 ///   cost done says is left of it).
 /// - Capped by what is left of the time budget, 0 once the target is reached.
@@ -107,11 +104,12 @@ pub(super) struct EtaEstimator {
     shot: Option<(f64, ShotPlan)>,
     /// For the shot in progress, what its receivers done got of what was expected of them.
     seen: Option<f64>,
+    /// For the shot in progress, the share of its receivers done.
+    receivers_done: f64,
     /// The indirect shots since the last direct shot.
     history: IndirectHistory,
-    /// The shots the indirect phase is foreseen to take (`indirect_forecast.rs`; 0 until
-    /// foreseen).
-    shots_foreseen: f64,
+    /// The indirect phase's cost foreseen (`indirect_forecast.rs`; empty until foreseen).
+    foreseen: CostCurve,
     /// Rays traced by the solve at the last count, and at the start of the shot in progress.
     rays: u64,
     shot_rays: u64,
@@ -138,11 +136,11 @@ impl Phase {
         }
     }
 
-    /// Seconds of `shots` indirect shots, at the phase's seconds per ray ([`SHOT_RAYS`] each);
-    /// 0 before it traced [`MIN_PRICED_RAYS`].
-    fn shots_seconds(&self, shots: f64) -> f64 {
+    /// Seconds of a cost of `rays` rays, at the phase's seconds per ray; 0 before it traced
+    /// [`MIN_PRICED_RAYS`].
+    fn cost_seconds(&self, rays: f64) -> f64 {
         if self.rays >= MIN_PRICED_RAYS {
-            shots * SHOT_RAYS * self.seconds / self.rays
+            rays * self.seconds / self.rays
         } else {
             0.0
         }
@@ -170,8 +168,9 @@ impl EtaEstimator {
             direct: Phase::default(),
             shot: None,
             seen: None,
+            receivers_done: 0.0,
             history: IndirectHistory::default(),
-            shots_foreseen: 0.0,
+            foreseen: CostCurve::default(),
             rays: 0,
             shot_rays: 0,
         }
@@ -182,12 +181,10 @@ impl EtaEstimator {
         self.rays = self.rays.max(rays);
     }
 
-    /// The indirect phase is foreseen to take `shots` shots: their seconds bound the prior from
-    /// below.
-    pub(super) fn indirect_shots_foreseen(&mut self, shots: f64) {
-        if shots.is_finite() {
-            self.shots_foreseen = shots.max(0.0);
-        }
+    /// The indirect phase is foreseen to cost `cost`: its seconds bound the prior from below,
+    /// and its shape carries the indirect shots' seconds to the target.
+    pub(super) fn indirect_cost_foreseen(&mut self, cost: CostCurve) {
+        self.foreseen = cost;
     }
 
     /// The first report: the unshot ratio `ratio` of `base` W at `now`, before any shot of the
@@ -201,6 +198,7 @@ impl EtaEstimator {
     pub(super) fn shot_started(&mut self, now: f64, plan: ShotPlan) {
         self.shot = Some((now, plan));
         self.seen = None;
+        self.receivers_done = 0.0;
         self.shot_rays = self.rays;
     }
 
@@ -208,6 +206,13 @@ impl EtaEstimator {
     /// of them.
     pub(super) fn returns_seen(&mut self, ratio: f64) {
         self.seen = ratio.is_finite().then_some(ratio.max(0.0));
+    }
+
+    /// The shot in progress has done `share` of its receivers.
+    pub(super) fn receivers_done(&mut self, share: f64) {
+        if share.is_finite() {
+            self.receivers_done = share.clamp(0.0, 1.0);
+        }
     }
 
     /// The shot in progress ended at `now`, leaving `ratio` of `base` W unshot.
@@ -246,7 +251,14 @@ impl EtaEstimator {
             None => self.after_direct(left),
             Some((start, plan)) => {
                 let seconds = (now - start).max(0.0);
-                let rest = rest_of_shot(seconds, fraction);
+                // The larger of what the cost done and the receivers done say is left: the
+                // weights follow the power received, and a sky's most exposed receivers are
+                // not its slowest (`eta_of_a_direct_shot_in_progress`).
+                let rest = rest_of_shot(seconds, fraction).max(if self.receivers_done > 0.0 {
+                    rest_of_shot(seconds, self.receivers_done)
+                } else {
+                    0.0
+                });
                 match plan.kind {
                     ShotKind::Light { left: queued } | ShotKind::Direct { left: queued } => {
                         let shot = seconds + rest;
@@ -256,11 +268,12 @@ impl EtaEstimator {
                                 .add(shot, plan.power, returns, 0.0, 1.0 + queued as f64);
                         // What the phase leaves unshot is not known before it ends: the
                         // returns stand for it (the target is far below).
-                        let after = phase.prior(phase.returns, 0.0);
+                        let by_power = phase.prior(phase.returns, 0.0).unwrap_or(0.0);
                         // Seconds per ray so far, this shot's included.
                         let so_far = self.direct.add(seconds, 0.0, 0.0, self.rays_of_shot(), 1.0);
-                        let shots = so_far.shots_seconds(self.shots_foreseen);
-                        Some(rest + queued as f64 * shot + after.unwrap_or(0.0).max(shots))
+                        let by_cost = so_far.cost_seconds(self.foreseen.total());
+                        let after = if by_cost > 0.0 { by_cost } else { by_power };
+                        Some(rest + queued as f64 * shot + after)
                     }
                     ShotKind::Indirect => self
                         .after_direct(left)
@@ -280,21 +293,18 @@ impl EtaEstimator {
         let Some((elapsed, span)) = self.history.span() else {
             return self.direct_prior(self.y?);
         };
+        if !self.foreseen.is_empty() {
+            return self.along_the_curve(elapsed, span, left);
+        }
         let model = self.history.model(left);
         let enough_shots = self.history.shots() >= MIN_SHOTS;
         // Until the history fills its window it says little (the first shots, of the most
         // concentrated power, shed nats fastest): at least what the direct phase suggested.
-        let Some((prior, by_shots)) = self.direct_prior_parts(self.history.y_start()) else {
+        let Some(prior) = self.direct_prior(self.history.y_start()) else {
             return if enough_shots { model } else { None };
         };
-        // The evidence weighs in as the window fills; against a prior of foreseen shots (not
-        // taken from the power, which the first shots shed fastest) only as its seconds pass.
-        let by_nats = (span / WINDOW_NATS).clamp(0.0, 1.0);
-        let w = if by_shots && prior > 0.0 {
-            by_nats.min((elapsed / (PRIOR_TRUST * prior)).clamp(0.0, 1.0))
-        } else {
-            by_nats
-        };
+        // The evidence weighs in as the window fills.
+        let w = (span / WINDOW_NATS).clamp(0.0, 1.0);
         if enough_shots && w >= 1.0 {
             return model;
         }
@@ -305,25 +315,39 @@ impl EtaEstimator {
         }
     }
 
+    /// Seconds left along the foreseen cost curve, the indirect shots having shed `span` nats in
+    /// `elapsed` seconds and `left` nats to go: the curve's cost from here to the target at a
+    /// price per ray that starts at the prior's and moves to what the shots so far paid as
+    /// their share of the curve grows ([`CURVE_TRUST`]).
+    fn along_the_curve(&self, elapsed: f64, span: f64, left: f64) -> Option<f64> {
+        let prior = self.direct_prior(self.history.y_start())?;
+        let curve = &self.foreseen;
+        let whole = curve.at(span + left);
+        if whole <= 0.0 {
+            return Some((prior - elapsed).max(0.0));
+        }
+        let done = curve.at(span);
+        let trust = CURVE_TRUST * whole;
+        let price = (prior / whole * trust + elapsed) / (trust + done);
+        Some(price * (whole - done))
+    }
+
     /// Rays traced since the shot in progress (or the last one) began.
     fn rays_of_shot(&self) -> f64 {
         self.rays.saturating_sub(self.shot_rays) as f64
     }
 
-    /// The prior from the end of the direct phase, which left ln ratio `y` of the base unshot.
+    /// The prior from the end of the direct phase, which left ln ratio `y` of the base unshot:
+    /// the foreseen cost to the target at the phase's seconds per ray; the phase's seconds per
+    /// W times the power left to send when nothing is foreseen (or nothing priced yet).
     fn direct_prior(&self, y: f64) -> Option<f64> {
-        self.direct_prior_parts(y).map(|(prior, _)| prior)
-    }
-
-    /// [`EtaEstimator::direct_prior`], and whether the foreseen shots' seconds set it (they
-    /// exceed the power's).
-    fn direct_prior_parts(&self, y: f64) -> Option<(f64, bool)> {
+        let nats = (y - self.target_ln).max(0.0);
+        let by_cost = self.direct.cost_seconds(self.foreseen.at(nats));
+        if by_cost > 0.0 {
+            return Some(by_cost);
+        }
         let unshot = y.exp() * self.base;
-        let power = self
-            .direct
-            .prior(unshot, self.target_ln.exp() * self.base)?;
-        let shots = self.direct.shots_seconds(self.shots_foreseen);
-        Some((power.max(shots), shots > power))
+        self.direct.prior(unshot, self.target_ln.exp() * self.base)
     }
 }
 

@@ -1,5 +1,6 @@
 //! What the indirect phase will cost, foreseen from where the unshot power is before it starts:
-//! the shots it will take (the ETA's prior, `eta.rs`, prices each at a constant).
+//! the shots it will take, and their cost against the nats of unshot power they shed (the
+//! [`CostCurve`] the ETA, `eta.rs`, prices and follows).
 //!
 //! Owns [`forecast`] and the model it runs ([`shot_powers`]): progressive shooting of the root
 //! with the most unshot power, each shot sending all of it and `back` of it coming back, spread
@@ -11,7 +12,8 @@
 //!
 //! Invariants: the forecast is finite and non-negative and needs no randomness (strata of the
 //! roots sorted by power, receivers by a fixed shuffle); the exchanges it asks for are bounded by
-//! the sample sizes whatever the scene, its other work is one sort of the roots (`tests::*`).
+//! the sample sizes whatever the scene, its other work is one sort of the roots (`tests::*`); the
+//! cost curve starts at (0, 0) and neither coordinate decreases along it.
 
 /// Roots the model is simulated on, at most.
 const MAX_SAMPLE: usize = 2048;
@@ -31,10 +33,34 @@ const MAX_SHOTS_PER_ROOT: usize = 200;
 /// The largest share of a shot taken to come back (a closed room of reflectance 0.95).
 const MAX_BACK: f64 = 0.95;
 
-/// The indirect phase foreseen: the shots it will take.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+/// Receivers each sampled shooter's facing count is taken over, at most (scaled to the whole).
+const MAX_FACING_RECEIVERS: usize = 1024;
+/// What an indirect shot costs, in rays of the direct phase (its seconds over the rays it
+/// traced): [`RAYS_PER_RECEIVER`] per receiver the shooter faces (its plan, its far links),
+/// and [`RAYS_PER_POWER`] times the square root of its power over the threshold (the links
+/// refined near it; docs/performance-notes.md, "What a shot costs against the power it sends").
+/// Both fitted on the scaling benchmark's six scenes (the same notes, "The indirect phase priced
+/// along a foreseen cost curve"): the ETA corrects the level as the indirect shots come, the
+/// curve's shape is what it relies on.
+const RAYS_PER_RECEIVER: f64 = 6.0;
+const RAYS_PER_POWER: f64 = 5000.0;
+/// Nats between the points of the cost curve, at least.
+const CURVE_STEP: f64 = 0.01;
+
+/// The indirect phase foreseen: the shots it will take, and what they cost against the nats
+/// of unshot power they shed.
+#[derive(Debug, Clone, Default, PartialEq)]
 pub(super) struct IndirectForecast {
     pub shots: f64,
+    pub cost: CostCurve,
+}
+
+/// The cost of the indirect phase foreseen, in rays of the direct phase, against the nats of
+/// unshot power shed from its start: increasing in both, from (0, 0).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub(super) struct CostCurve {
+    /// (nats shed, cost to shed them).
+    points: Vec<(f64, f64)>,
 }
 
 /// The roots as the forecast sees them.
@@ -45,6 +71,8 @@ pub(super) struct ForecastInput<'a> {
     pub share: &'a [f64],
     /// The unshot power to reach, W.
     pub target: f64,
+    /// The power a link may leave unrepresented, W (prices a shot's near links).
+    pub threshold: f64,
 }
 
 /// A root of the sample and how many roots it stands for.
@@ -56,10 +84,11 @@ struct Sampled {
 
 /// The indirect phase foreseen from `input`, `back(s, r)` the share of 1 W sent by root `s` that
 /// root `r` sends back (its reflectance times what it would receive with no occluder; `None`
-/// when they do not face each other).
+/// when they do not face each other), `faces(s, r)` whether a shot of `s` visits `r`.
 pub(super) fn forecast(
     input: &ForecastInput,
     back: &dyn Fn(usize, usize) -> Option<f64>,
+    faces: &dyn Fn(usize, usize) -> bool,
 ) -> IndirectForecast {
     let n = input.unshot.len();
     let total: f64 = input.unshot.iter().sum();
@@ -78,12 +107,116 @@ pub(super) fn forecast(
     let weight: Vec<f64> = sample.iter().map(|s| s.weight).collect();
     let sample_total: f64 = u.iter().zip(&weight).map(|(u, w)| u * w).sum();
     let target = input.target * sample_total / total;
-    let shots: f64 = shot_powers(&u, &share, &weight, back, target)
-        .iter()
-        .map(|&(k, _)| weight[k])
-        .sum();
+    let simulated = shot_powers(&u, &share, &weight, back, target);
+    let shots: f64 = simulated.iter().map(|&(k, _)| weight[k]).sum();
     debug_assert!(shots.is_finite() && shots >= 0.0);
-    IndirectForecast { shots }
+    let facing = facing_counts(n, &sample, faces);
+    let cost = cost_curve(
+        &simulated,
+        &weight,
+        &facing,
+        back,
+        sample_total,
+        input.threshold,
+    );
+    IndirectForecast { shots, cost }
+}
+
+/// Receivers each sampled root's shot visits: its facing count over at most
+/// [`MAX_FACING_RECEIVERS`] receivers (a fixed shuffle), scaled to the `n` roots.
+fn facing_counts(n: usize, sample: &[Sampled], faces: &dyn Fn(usize, usize) -> bool) -> Vec<f64> {
+    let receivers = receiver_sample(n, MAX_FACING_RECEIVERS);
+    let scale = n as f64 / receivers.len().max(1) as f64;
+    sample
+        .iter()
+        .map(|s| {
+            let k = receivers
+                .iter()
+                .filter(|&&r| r != s.root && faces(s.root, r))
+                .count();
+            k as f64 * scale
+        })
+        .collect()
+}
+
+/// The cost curve of the model's shots `simulated` (sampled root, power per root it stands for),
+/// each costing per root it stands for [`RAYS_PER_RECEIVER`] per receiver it faces and
+/// [`RAYS_PER_POWER`] times the square root of its power over `threshold`; the nats shed after
+/// each from `total` W, `back` of every shot coming back.
+fn cost_curve(
+    simulated: &[(usize, f64)],
+    weight: &[f64],
+    facing: &[f64],
+    back: f64,
+    total: f64,
+    threshold: f64,
+) -> CostCurve {
+    let mut points = vec![(0.0, 0.0)];
+    let (mut left, mut cost) = (total, 0.0);
+    for (j, &(k, p)) in simulated.iter().enumerate() {
+        let w = weight[k];
+        cost += w * (RAYS_PER_RECEIVER * facing[k] + RAYS_PER_POWER * (p / threshold).sqrt());
+        left -= (1.0 - back) * p * w;
+        let nats = (total / left.max(total * 1e-300)).ln();
+        let last = points.last().map_or(0.0, |&(u, _)| u);
+        if nats >= last + CURVE_STEP || j + 1 == simulated.len() {
+            points.push((nats.max(last), cost));
+        }
+    }
+    CostCurve::new(points)
+}
+
+impl CostCurve {
+    /// The curve through `points` (nats shed, cost), from (0, 0), neither decreasing.
+    pub(super) fn new(points: Vec<(f64, f64)>) -> Self {
+        debug_assert!(points.first() == Some(&(0.0, 0.0)));
+        debug_assert!(points
+            .windows(2)
+            .all(|w| w[1].0 >= w[0].0 && w[1].1 >= w[0].1));
+        CostCurve { points }
+    }
+
+    /// Cost to shed `nats` from the start: linear between the points, and past the last one at
+    /// the mean cost per nat of its last nat (the model stops at its own target, which the solve
+    /// may pass later).
+    pub(super) fn at(&self, nats: f64) -> f64 {
+        let p = &self.points;
+        let Some(&(u_end, c_end)) = p.last() else {
+            return 0.0;
+        };
+        if nats >= u_end {
+            let i = p
+                .partition_point(|&(u, _)| u < u_end - 1.0)
+                .min(p.len() - 1);
+            let (u0, c0) = p[i];
+            let slope = if u_end > u0 {
+                (c_end - c0) / (u_end - u0)
+            } else {
+                0.0
+            };
+            return c_end + slope * (nats - u_end);
+        }
+        let i = p.partition_point(|&(u, _)| u < nats.max(0.0));
+        if i == 0 {
+            return p[0].1;
+        }
+        let ((u0, c0), (u1, c1)) = (p[i - 1], p[i]);
+        if u1 > u0 {
+            c0 + (c1 - c0) * (nats - u0) / (u1 - u0)
+        } else {
+            c1
+        }
+    }
+
+    /// Cost of the whole curve (to the model's own target).
+    pub(super) fn total(&self) -> f64 {
+        self.points.last().map_or(0.0, |&(_, c)| c)
+    }
+
+    /// Whether nothing is foreseen.
+    pub(super) fn is_empty(&self) -> bool {
+        self.points.len() < 2
+    }
 }
 
 /// The share of a shot's power that comes back as unshot power: over [`BACK_SHOOTERS`] shooters
@@ -265,12 +398,17 @@ mod tests {
             unshot: &unshot,
             share: &share,
             target: 1e-3 * 15.0 * copies as f64,
+            threshold: 1e-6,
         };
         let calls = Cell::new(0);
-        let f = forecast(&input, &|s, r| {
-            calls.set(calls.get() + 1);
-            (s < lit && r < lit && s / 5 == r / 5).then_some(0.1)
-        });
+        let f = forecast(
+            &input,
+            &|s, r| {
+                calls.set(calls.get() + 1);
+                (s < lit && r < lit && s / 5 == r / 5).then_some(0.1)
+            },
+            &|s, r| s < lit && r < lit && s / 5 == r / 5,
+        );
         (f, calls.get())
     }
 
@@ -323,8 +461,9 @@ mod tests {
             unshot: &unshot,
             share: &share,
             target: 0.5,
+            threshold: 1e-3,
         };
-        let f = forecast(&input, &|_, _| None);
+        let f = forecast(&input, &|_, _| None, &|_, _| false);
         assert_eq!(f.shots, 3.0, "{f:?}");
     }
 
@@ -339,6 +478,42 @@ mod tests {
         assert!(strata_by_power(&[0.0; 3], &[0, 1, 2], 4).is_empty());
     }
 
+    /// The cost curve of a small scene against its shots counted by hand: each shot costs
+    /// [`RAYS_PER_RECEIVER`] per receiver it faces (four: the other roots of its copy) and
+    /// [`RAYS_PER_POWER`] times the square root of its power over the threshold; the nats are
+    /// those of the unshot power the shots leave, a share `back` of each coming back.
+    #[test]
+    fn the_cost_curve_counts_receivers_faced_and_power() {
+        let (f, _) = copies(1, 0);
+        let u = [5.0, 4.0, 3.0, 2.0, 1.0];
+        let exact = shot_powers(&u, &[1.0; 5], &[1.0; 5], 0.4, 15e-3);
+        let threshold = 1e-6;
+        let (mut left, mut cost) = (15.0, 0.0);
+        for &(_, p) in &exact {
+            cost += RAYS_PER_RECEIVER * 4.0 + RAYS_PER_POWER * (p / threshold).sqrt();
+            left -= 0.6 * p;
+            let nats = (15.0f64 / left).ln();
+            let at = f.cost.at(nats);
+            assert!((at - cost).abs() <= 1e-9 * cost, "{at} {cost}");
+        }
+        assert!((f.cost.total() - cost).abs() <= 1e-9 * cost);
+    }
+
+    /// Between its points the curve is linear; past the last it goes on at the cost per nat of
+    /// its last nat; before the first it is 0.
+    #[test]
+    fn the_cost_curve_interpolates_and_extends() {
+        let c = CostCurve::new(vec![(0.0, 0.0), (1.0, 10.0), (2.0, 30.0), (3.0, 40.0)]);
+        assert_eq!(c.at(-1.0), 0.0);
+        assert_eq!(c.at(0.5), 5.0);
+        assert_eq!(c.at(1.5), 20.0);
+        assert_eq!(c.at(3.0), 40.0);
+        assert_eq!(c.at(4.0), 50.0);
+        assert_eq!(c.total(), 40.0);
+        assert!(CostCurve::default().is_empty());
+        assert_eq!(CostCurve::default().at(1.0), 0.0);
+    }
+
     /// Nothing to shoot, or already within the target: nothing foreseen.
     #[test]
     fn nothing_to_shoot_foresees_nothing() {
@@ -346,14 +521,17 @@ mod tests {
             unshot: &[0.5, 0.5],
             share: &[1.0, 1.0],
             target: 1.0,
+            threshold: 1e-3,
         };
         let back = |_: usize, _: usize| None;
-        assert_eq!(forecast(&input, &back), IndirectForecast::default());
+        let faces = |_: usize, _: usize| true;
+        assert_eq!(forecast(&input, &back, &faces), IndirectForecast::default());
         let empty = ForecastInput {
             unshot: &[],
             share: &[],
             target: 0.0,
+            threshold: 1e-3,
         };
-        assert_eq!(forecast(&empty, &back), IndirectForecast::default());
+        assert_eq!(forecast(&empty, &back, &faces), IndirectForecast::default());
     }
 }

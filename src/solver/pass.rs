@@ -279,7 +279,7 @@ pub(super) fn shoot(
     }
     let returns_units = CostUnits::new(returns);
     // What the pass's loop over its receivers costs (its plan above not counted), for
-    // `RUST_LOG=wavrad::solver::shooting=trace` (docs/performance-notes.md, "What a shot costs
+    // `RUST_LOG=wavrad::solver::pass=trace` (docs/performance-notes.md, "What a shot costs
     // against the power it sends").
     let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
         let (rays, links) = (
@@ -490,12 +490,20 @@ pub(super) fn foresee_indirect(
         unshot,
         share: &share,
         target,
+        threshold: ctx.threshold,
     };
-    forecast(&input, &|s, r| {
+    let faces = |s: usize, r: usize| {
         let (ss, sr) = (&ctx.spheres[s], &ctx.spheres[r]);
-        (receives(r) && faces_each_other(&roots[s], ss, &roots[r], sr, facing_eps))
-            .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
-    })
+        receives(r) && faces_each_other(&roots[s], ss, &roots[r], sr, facing_eps)
+    };
+    forecast(
+        &input,
+        &|s, r| {
+            faces(s, r)
+                .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
+        },
+        &faces,
+    )
 }
 
 /// Unshot power, counted over each face only (never over the empty part of a domain).

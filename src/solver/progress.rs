@@ -203,11 +203,12 @@ impl<'a> Reporter<'a> {
     pub(super) fn indirect_foreseen(&mut self, forecast: IndirectForecast) {
         tracing::debug!(
             shots = forecast.shots,
+            cost = forecast.cost.total(),
             rays = self.visibility.rays_traced(),
             seconds = self.start.elapsed().as_secs_f64(),
             "indirect phase foreseen"
         );
-        self.eta.indirect_shots_foreseen(forecast.shots);
+        self.eta.indirect_cost_foreseen(forecast.cost);
         self.foreseen = true;
     }
 
@@ -230,6 +231,10 @@ impl<'a> Reporter<'a> {
         if counts.expected > 0 {
             self.eta
                 .returns_seen(counts.returned as f64 / counts.expected as f64);
+        }
+        if receivers > 0 {
+            self.eta
+                .receivers_done(counts.receivers as f64 / receivers as f64);
         }
         let progress = Progress {
             links: self.links.load(Ordering::Relaxed),
