@@ -42,7 +42,7 @@ const MIN_SHOTS: usize = 2;
 /// The share of the foreseen indirect cost (`indirect_forecast.rs`) the indirect shots must
 /// have spent before their seconds weigh as much as the prior's in the price of what is left.
 const CURVE_TRUST: f64 = 0.3;
-/// Rays the direct phase must have traced before its seconds per ray price the foreseen shots
+/// Rays the direct phase must have traced before its seconds per ray price the foreseen cost
 /// (the first rays of a shot come with its set-up, and would make the first reports jump).
 const MIN_PRICED_RAYS: f64 = 1e4;
 
@@ -69,8 +69,8 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 ///   multiple (`tests::eta_prior_*`).
 /// - Then, along the foreseen cost curve: the cost from the nats shed so far to the target, at
 ///   a price per ray that starts at the prior's and moves to the indirect shots' own (their
-///   seconds over the cost of the nats they shed) as that cost reaches [`CURVE_TRUST`] of the
-///   whole. The curve's shape carries the price to the target: seconds per nat that rise as
+///   seconds over the cost of the nats they shed), weighing as much as the prior's once that
+///   cost is [`CURVE_TRUST`] of the whole. The curve's shape carries the price to the target: seconds per nat that rise as
 ///   the power spreads over more roots (`eta_follows_a_cost_per_nat_that_rises_as_foreseen`).
 /// - With nothing foreseen, the indirect shots are the evidence: with `u` the nats of unshot
 ///   ratio shed since the
@@ -84,8 +84,9 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 ///   (`eta_follows_cheaper_shots_that_shed_fewer_nats`). Until the history spans the window (and
 ///   [`MIN_SHOTS`]), the prior less the seconds since, the evidence weighing in as the window
 ///   fills. The seconds left are the
-///   integral down to the target, less the seconds of the shot in progress (at least what its
-///   cost done says is left of it).
+///   integral down to the target, less the seconds of the shot in progress (at least its rest).
+/// - A shot's rest: `s (1 - f) / f` more seconds, `s` its seconds so far, `f` the share of its
+///   cost done or of its receivers done, whichever leaves more.
 /// - Capped by what is left of the time budget, 0 once the target is reached.
 #[derive(Debug, Clone)]
 pub(super) struct EtaEstimator {
@@ -181,8 +182,9 @@ impl EtaEstimator {
         self.rays = self.rays.max(rays);
     }
 
-    /// The indirect phase is foreseen to cost `cost`: its seconds bound the prior from below,
-    /// and its shape carries the indirect shots' seconds to the target.
+    /// The indirect phase is foreseen to cost `cost`: its seconds are the prior (the power's
+    /// only while it prices nothing), and its shape carries the indirect shots' seconds to the
+    /// target.
     pub(super) fn indirect_cost_foreseen(&mut self, cost: CostCurve) {
         self.foreseen = cost;
     }
@@ -320,15 +322,24 @@ impl EtaEstimator {
     /// price per ray that starts at the prior's and moves to what the shots so far paid as
     /// their share of the curve grows ([`CURVE_TRUST`]).
     fn along_the_curve(&self, elapsed: f64, span: f64, left: f64) -> Option<f64> {
-        let prior = self.direct_prior(self.history.y_start())?;
+        let prior = self.direct_prior(self.history.y_start());
         let curve = &self.foreseen;
         let whole = curve.at(span + left);
         if whole <= 0.0 {
-            return Some((prior - elapsed).max(0.0));
+            return prior.map(|p| (p - elapsed).max(0.0));
         }
         let done = curve.at(span);
-        let trust = CURVE_TRUST * whole;
-        let price = (prior / whole * trust + elapsed) / (trust + done);
+        // With no prior (no direct phase priced it), the shots' own price alone.
+        let trust = if prior.is_some() {
+            CURVE_TRUST * whole
+        } else {
+            0.0
+        };
+        let prior_price = prior.map_or(0.0, |p| p / whole);
+        if trust + done <= 0.0 {
+            return None;
+        }
+        let price = (prior_price * trust + elapsed) / (trust + done);
         Some(price * (whole - done))
     }
 

@@ -185,12 +185,10 @@ impl CostCurve {
             return 0.0;
         };
         if nats >= u_end {
-            let i = p
-                .partition_point(|&(u, _)| u < u_end - 1.0)
-                .min(p.len() - 1);
-            let (u0, c0) = p[i];
+            // The mean cost per nat over the last nat (or the whole curve, when shorter).
+            let u0 = (u_end - 1.0).max(0.0);
             let slope = if u_end > u0 {
-                (c_end - c0) / (u_end - u0)
+                (c_end - self.at(u0)) / (u_end - u0)
             } else {
                 0.0
             };
@@ -510,6 +508,9 @@ mod tests {
         assert_eq!(c.at(3.0), 40.0);
         assert_eq!(c.at(4.0), 50.0);
         assert_eq!(c.total(), 40.0);
+        // One long step: the last nat is within it.
+        let long = CostCurve::new(vec![(0.0, 0.0), (2.5, 100.0)]);
+        assert_eq!(long.at(3.0), 120.0);
         assert!(CostCurve::default().is_empty());
         assert_eq!(CostCurve::default().at(1.0), 0.0);
     }

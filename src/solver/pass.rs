@@ -471,12 +471,7 @@ fn seen_fraction(ctx: &ShotContext, shooter: usize, ri: usize) -> f64 {
     let (c, p) = (ctx.link_points[shooter], ctx.link_points[ri]);
     let ignore = [sroot.face.0, root.face.0];
     let (mut seen, mut all) = (0u32, 0u32);
-    let n = root.normal;
-    let t1 = n.any_orthonormal_vector();
-    let t2 = n.cross(t1);
-    for &(a, b) in &SEEN_DIRECTIONS {
-        let (r, phi) = (a.sqrt(), std::f64::consts::TAU * b);
-        let d = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - a).sqrt();
+    for d in seen_directions(root.normal) {
         if let Some(q) = ray_meets_root(p, d, sroot) {
             all += 1;
             if ctx.visibility.visible(p, q, ignore) {
@@ -496,6 +491,16 @@ fn seen_fraction(ctx: &ShotContext, shooter: usize, ri: usize) -> f64 {
         }
     }
     f64::from(seen) / f64::from(all)
+}
+
+/// [`SEEN_DIRECTIONS`] about the normal `n`, as unit vectors.
+fn seen_directions(n: DVec3) -> impl Iterator<Item = DVec3> {
+    let t1 = n.any_orthonormal_vector();
+    let t2 = n.cross(t1);
+    SEEN_DIRECTIONS.iter().map(move |&(a, b)| {
+        let (r, phi) = (a.sqrt(), std::f64::consts::TAU * b);
+        t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - a).sqrt()
+    })
 }
 
 /// Where the ray from `p` along `d` meets `root`'s domain from its front side, if it does.
@@ -626,12 +631,8 @@ mod tests {
     #[test]
     fn seen_directions_are_cosine_weighted() {
         let n = DVec3::new(0.3, -0.5, 0.8).normalize();
-        let t1 = n.any_orthonormal_vector();
-        let t2 = n.cross(t1);
         let mut sum = DVec3::ZERO;
-        for &(a, b) in &SEEN_DIRECTIONS {
-            let (r, phi) = (a.sqrt(), std::f64::consts::TAU * b);
-            let d = t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - a).sqrt();
+        for d in seen_directions(n) {
             assert!((d.length() - 1.0).abs() < 1e-12 && d.dot(n) > 0.0);
             sum += d;
         }

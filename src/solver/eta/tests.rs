@@ -284,8 +284,8 @@ fn eta_follows_cheaper_shots_that_shed_fewer_nats() {
     assert!(worst.0 > 0.75 && worst.1 < 1.25, "{worst:?}");
 }
 
-/// During a direct shot: the rest of the shot from its cost done (its seconds so far again
-/// while none is), the direct shots still queued as long as this one, then the prior on the
+/// During a direct shot: the rest of the shot from its cost done or its receivers done,
+/// whichever leaves more (its seconds so far again while none is), the direct shots still queued as long as this one, then the prior on the
 /// returns (scaled by what the receivers got); capped by the time budget.
 #[test]
 fn eta_of_a_direct_shot_in_progress() {
