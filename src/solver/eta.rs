@@ -137,14 +137,14 @@ impl Phase {
         }
     }
 
-    /// Seconds of a cost of `rays` rays, at the phase's seconds per ray; 0 before it traced
-    /// [`MIN_PRICED_RAYS`].
+    /// The phase's seconds per ray; none before it traced [`MIN_PRICED_RAYS`].
+    fn seconds_per_ray(&self) -> Option<f64> {
+        (self.rays >= MIN_PRICED_RAYS).then(|| self.seconds / self.rays)
+    }
+
+    /// Seconds of a cost of `rays` rays, at the phase's seconds per ray; 0 before it is priced.
     fn cost_seconds(&self, rays: f64) -> f64 {
-        if self.rays >= MIN_PRICED_RAYS {
-            rays * self.seconds / self.rays
-        } else {
-            0.0
-        }
+        self.seconds_per_ray().map_or(0.0, |s| rays * s)
     }
 
     /// Seconds of the indirect shots after this phase, `unshot` W left unshot by it, `target` W
@@ -322,24 +322,28 @@ impl EtaEstimator {
     /// price per ray that starts at the prior's and moves to what the shots so far paid as
     /// their share of the curve grows ([`CURVE_TRUST`]).
     fn along_the_curve(&self, elapsed: f64, span: f64, left: f64) -> Option<f64> {
-        let prior = self.direct_prior(self.history.y_start());
+        let prior = || self.direct_prior(self.history.y_start());
         let curve = &self.foreseen;
         let whole = curve.at(span + left);
         if whole <= 0.0 {
-            return prior.map(|p| (p - elapsed).max(0.0));
+            return prior().map(|p| (p - elapsed).max(0.0));
         }
         let done = curve.at(span);
-        // With no prior (no direct phase priced it), the shots' own price alone.
-        let trust = if prior.is_some() {
+        // The prior's price: the direct phase's per ray; when it priced no ray, the power
+        // prior spread over the curve; with neither, the shots' own price alone.
+        let prior_price = self
+            .direct
+            .seconds_per_ray()
+            .or_else(|| prior().map(|p| p / whole));
+        let trust = if prior_price.is_some() {
             CURVE_TRUST * whole
         } else {
             0.0
         };
-        let prior_price = prior.map_or(0.0, |p| p / whole);
         if trust + done <= 0.0 {
             return None;
         }
-        let price = (prior_price * trust + elapsed) / (trust + done);
+        let price = (prior_price.unwrap_or(0.0) * trust + elapsed) / (trust + done);
         Some(price * (whole - done))
     }
 

@@ -108,17 +108,10 @@ pub(super) fn forecast(
     let sample_total: f64 = u.iter().zip(&weight).map(|(u, w)| u * w).sum();
     let target = input.target * sample_total / total;
     let simulated = shot_powers(&u, &share, &weight, back, target);
-    let shots: f64 = simulated.iter().map(|&(k, _)| weight[k]).sum();
+    let shots: f64 = simulated.iter().map(|s| weight[s.entry]).sum();
     debug_assert!(shots.is_finite() && shots >= 0.0);
     let facing = facing_counts(n, &sample, faces);
-    let cost = cost_curve(
-        &simulated,
-        &weight,
-        &facing,
-        back,
-        sample_total,
-        input.threshold,
-    );
+    let cost = cost_curve(&simulated, &weight, &facing, sample_total, input.threshold);
     IndirectForecast { shots, cost }
 }
 
@@ -139,25 +132,23 @@ fn facing_counts(n: usize, sample: &[Sampled], faces: &dyn Fn(usize, usize) -> b
         .collect()
 }
 
-/// The cost curve of the model's shots `simulated` (sampled root, power per root it stands for),
-/// each costing per root it stands for [`RAYS_PER_RECEIVER`] per receiver it faces and
-/// [`RAYS_PER_POWER`] times the square root of its power over `threshold`; the nats shed after
-/// each from `total` W, `back` of every shot coming back.
+/// The cost curve of the model's shots `simulated`, each costing per root it stands for
+/// [`RAYS_PER_RECEIVER`] per receiver it faces and [`RAYS_PER_POWER`] times the square root of
+/// its power over `threshold`; the nats shed after each from `total` W.
 fn cost_curve(
-    simulated: &[(usize, f64)],
+    simulated: &[SimulatedShot],
     weight: &[f64],
     facing: &[f64],
-    back: f64,
     total: f64,
     threshold: f64,
 ) -> CostCurve {
     let mut points = vec![(0.0, 0.0)];
-    let (mut left, mut cost) = (total, 0.0);
-    for (j, &(k, p)) in simulated.iter().enumerate() {
-        let w = weight[k];
-        cost += w * (RAYS_PER_RECEIVER * facing[k] + RAYS_PER_POWER * (p / threshold).sqrt());
-        left -= (1.0 - back) * p * w;
-        let nats = (total / left.max(total * 1e-300)).ln();
+    let mut cost = 0.0;
+    for (j, s) in simulated.iter().enumerate() {
+        let (k, p) = (s.entry, s.power);
+        cost +=
+            weight[k] * (RAYS_PER_RECEIVER * facing[k] + RAYS_PER_POWER * (p / threshold).sqrt());
+        let nats = (total / s.left.max(total * 1e-300)).ln();
         let last = points.last().map_or(0.0, |&(u, _)| u);
         if nats >= last + CURVE_STEP || j + 1 == simulated.len() {
             points.push((nats.max(last), cost));
@@ -242,17 +233,27 @@ fn back_share(unshot: &[f64], order: &[usize], back: &dyn Fn(usize, usize) -> Op
     (scale * sum / shooters.len() as f64).clamp(0.0, MAX_BACK)
 }
 
-/// The model's shots: (sampled root, power sent per root it stands for) of each, in order, from
-/// unshot powers `u` per root, entry `i` standing for `weight[i]` roots alike (shooting it shoots
-/// them all), with `back` of every shot returning over the roots in proportion to `share`, until
-/// the unshot power is at most `target`.
+/// One of the model's shots.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SimulatedShot {
+    /// The sampled entry that shoots.
+    entry: usize,
+    /// The power it sends, per root it stands for.
+    power: f64,
+    /// The unshot power the model holds after the shot (its returns counted).
+    left: f64,
+}
+
+/// The model's shots, in order, from unshot powers `u` per root, entry `i` standing for
+/// `weight[i]` roots alike (shooting it shoots them all), with `back` of every shot returning
+/// over the roots in proportion to `share`, until the unshot power is at most `target`.
 fn shot_powers(
     u: &[f64],
     share: &[f64],
     weight: &[f64],
     back: f64,
     target: f64,
-) -> Vec<(usize, f64)> {
+) -> Vec<SimulatedShot> {
     debug_assert!(u.len() == share.len() && u.len() == weight.len());
     let mut u = u.to_vec();
     // Where a W of returns lands, per root of each entry.
@@ -283,7 +284,11 @@ fn shot_powers(
             *uj += returned * sj;
         }
         total = u.iter().zip(weight).map(|(u, w)| u * w).sum();
-        shots.push((i, p));
+        shots.push(SimulatedShot {
+            entry: i,
+            power: p,
+            left: total,
+        });
     }
     shots
 }
@@ -344,7 +349,11 @@ mod tests {
     fn with_nothing_back_the_largest_roots_shoot_once() {
         let u = [1.0, 5.0, 3.0, 4.0, 2.0];
         let shots = shot_powers(&u, &[1.0; 5], &[1.0; 5], 0.0, 3.5);
-        assert_eq!(shots, vec![(1, 5.0), (3, 4.0), (2, 3.0)]);
+        let (entries, powers): (Vec<usize>, Vec<f64>) =
+            shots.iter().map(|s| (s.entry, s.power)).unzip();
+        assert_eq!((entries, powers), (vec![1, 3, 2], vec![5.0, 4.0, 3.0]));
+        let left: Vec<f64> = shots.iter().map(|s| s.left).collect();
+        assert_eq!(left, vec![10.0, 6.0, 3.0]);
         assert!(shot_powers(&u, &[1.0; 5], &[1.0; 5], 0.0, 15.0).is_empty());
     }
 
@@ -355,9 +364,10 @@ mod tests {
         let shots = shot_powers(&[1.0], &[1.0], &[1.0], 0.5, 0.01);
         let k = (0.01f64.ln() / 0.5f64.ln()).ceil() as usize;
         assert_eq!(shots.len(), k);
-        for (j, &(i, p)) in shots.iter().enumerate() {
-            assert_eq!(i, 0);
-            assert!((p - 0.5f64.powi(j as i32)).abs() < 1e-12);
+        for (j, s) in shots.iter().enumerate() {
+            assert_eq!(s.entry, 0);
+            assert!((s.power - 0.5f64.powi(j as i32)).abs() < 1e-12);
+            assert!((s.left - 0.5f64.powi(j as i32 + 1)).abs() < 1e-12);
         }
     }
 
@@ -367,13 +377,16 @@ mod tests {
     #[test]
     fn a_weighted_entry_shoots_as_the_roots_it_stands_for() {
         let count =
-            |shots: &[(usize, f64)], w: &[f64]| -> f64 { shots.iter().map(|&(i, _)| w[i]).sum() };
+            |shots: &[SimulatedShot], w: &[f64]| -> f64 { shots.iter().map(|s| w[s.entry]).sum() };
         let (u, share) = ([3.0, 1.0], [1.0, 2.0]);
         let (spelled_u, spelled_share) = ([3.0, 3.0, 1.0], [1.0, 1.0, 2.0]);
         let weighted = shot_powers(&u, &share, &[2.0, 1.0], 0.0, 1.5);
-        assert_eq!(weighted, vec![(0, 3.0)]);
+        assert_eq!(
+            (weighted.len(), weighted[0].entry, weighted[0].power),
+            (1, 0, 3.0)
+        );
         let spelled = shot_powers(&spelled_u, &spelled_share, &[1.0; 3], 0.0, 1.5);
-        let powers: Vec<f64> = spelled.iter().map(|&(_, p)| p).collect();
+        let powers: Vec<f64> = spelled.iter().map(|s| s.power).collect();
         assert_eq!(powers, vec![3.0, 3.0]);
         let weighted = shot_powers(&u, &share, &[2.0, 1.0], 0.6, 1e-3);
         let spelled = shot_powers(&spelled_u, &spelled_share, &[1.0; 3], 0.6, 1e-3);
@@ -487,7 +500,8 @@ mod tests {
         let exact = shot_powers(&u, &[1.0; 5], &[1.0; 5], 0.4, 15e-3);
         let threshold = 1e-6;
         let (mut left, mut cost) = (15.0, 0.0);
-        for &(_, p) in &exact {
+        for s in &exact {
+            let p = s.power;
             cost += RAYS_PER_RECEIVER * 4.0 + RAYS_PER_POWER * (p / threshold).sqrt();
             left -= 0.6 * p;
             let nats = (15.0f64 / left).ln();

@@ -19,6 +19,7 @@ mod element;
 mod element_source;
 mod eta;
 mod far_field;
+mod forecast_inputs;
 mod front_map;
 pub(crate) mod hierarchy;
 mod indirect_forecast;
@@ -37,6 +38,7 @@ mod shot_record;
 mod solution;
 mod source;
 mod transfer;
+mod unoccluded;
 pub(crate) mod visibility;
 
 pub use shooting::solve;

@@ -1,8 +1,8 @@
 //! One pass of shooters: which roots shoot together (`pick_shooters`: the next emitter's direct
 //! shot alone, else the root with the most unshot power and roots of at least half its power that
 //! face none of the pass's others), the plan over the receivers (what each would get with no
-//! occluder: the cost weights of the progress and the ETA, and the indirect phase foreseen after
-//! the first direct shot), and the parallel loop in which every receiver takes each shooter's
+//! occluder: the cost weights of the progress and the ETA, and at the first direct shot the
+//! indirect phase foreseen from it, `forecast_inputs.rs`), and the parallel loop in which every receiver takes each shooter's
 //! light (a far link, or links refined and judged on their nodes' sums).
 //!
 //! Invariants: no root of a pass receives from another of it (`faces_each_other`, asserted in
@@ -16,17 +16,16 @@ use super::element::Sphere;
 use super::element_source::{ElementShot, ElementSource, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field;
+use super::forecast_inputs::foresee_after_direct_shot;
 use super::hierarchy::Hierarchy;
-use super::indirect_forecast::{forecast, ForecastInput, IndirectForecast};
-use super::kernel::point_polygon_form_factor;
 use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
 use super::refine::{Shot, ShotContext};
 use super::shot_record::ShotRecord;
 use super::source::Rays;
+use super::unoccluded::{faces_each_other, unoccluded_received};
 use super::{mean_rgb_sum, DIRECT_DETAIL_TIGHTENING};
-use crate::domain::{ElementRoot, Shape};
+use crate::domain::ElementRoot;
 use crate::scene::Rgb;
-use glam::DVec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -250,31 +249,14 @@ pub(super) fn shoot(
     };
     let returns = (0..roots.len()).map(expected).sum();
     if direct && !reporter.has_forecast() {
-        // The indirect phase foreseen from what this shot is expected to leave unshot, until
-        // the direct phase ends and leaves the real figure (`solve`).
-        // Each receiver's share as the few rays of `seen_fraction` see it (the plan's
-        // estimate has no occluder: under a sky it would count every wall between buildings).
-        let shooter = shooters[0];
-        let seen: Vec<f64> = (0..roots.len())
-            .into_par_iter()
-            .map(|ri| {
-                if received[ri][0] > 0.0 {
-                    seen_fraction(ctx, shooter, ri)
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        // Emitters' unshot power is their emission until their direct shots take it.
-        let emits = |ri: usize| mean_rgb_sum(roots[ri].exitance) > 0.0;
-        let after: Vec<f64> = (0..roots.len())
-            .map(|ri| if emits(ri) { 0.0 } else { unshot[ri] } + expected(ri) * seen[ri])
-            .collect();
-        let base: f64 = (0..roots.len())
-            .map(|ri| received[ri][0].max(0.0) * seen[ri])
-            .sum();
-        let target = target_unshot * base;
-        let f = foresee_indirect(ctx, hierarchies, &after, target, facing_eps);
+        let first: Vec<f64> = received.iter().map(|p| p[0]).collect();
+        let f = foresee_after_direct_shot(
+            ctx,
+            (hierarchies, &*unshot),
+            (shooters[0], &first),
+            target_unshot,
+            facing_eps,
+        );
         reporter.indirect_foreseen(f);
     }
     let returns_units = CostUnits::new(returns);
@@ -446,287 +428,16 @@ fn centre_rays_suffice(received: f64, threshold: f64, shooter: &Sphere, receiver
     apart && received <= CENTRE_RAY_SHARE * threshold
 }
 
-/// Directions of [`seen_fraction`]'s rays: a 2 x 4 stratified grid of the unit square, mapped
-/// to the hemisphere with a density in the cosine (the form factor's weight at the receiver).
-const SEEN_DIRECTIONS: [(f64, f64); 8] = [
-    (0.25, 0.125),
-    (0.25, 0.375),
-    (0.25, 0.625),
-    (0.25, 0.875),
-    (0.75, 0.0),
-    (0.75, 0.25),
-    (0.75, 0.5),
-    (0.75, 0.75),
-];
-
-/// The share of root `shooter` that root `ri` sees, from its link point: of the directions of
-/// [`SEEN_DIRECTIONS`] (the receiver's hemisphere, cosine-weighted) that meet the shooter's
-/// domain, those whose ray reaches it; when none meets it (a source small in the receiver's
-/// view), the rays to the shooter's link point and to the points halfway from there to its
-/// corners. A wall under an eave sees a sky panel mostly past the eave, low towards the
-/// horizon, where rays towards the panel's middle are blocked (`tests::seen_directions_*`,
-/// `tests::a_ray_meets_a_root_where_its_twin_does`).
-fn seen_fraction(ctx: &ShotContext, shooter: usize, ri: usize) -> f64 {
-    let (sroot, root) = (&ctx.roots[shooter], &ctx.roots[ri]);
-    let (c, p) = (ctx.link_points[shooter], ctx.link_points[ri]);
-    let ignore = [sroot.face.0, root.face.0];
-    let (mut seen, mut all) = (0u32, 0u32);
-    for d in seen_directions(root.normal) {
-        if let Some(q) = ray_meets_root(p, d, sroot) {
-            all += 1;
-            if ctx.visibility.visible(p, q, ignore) {
-                seen += 1;
-            }
-        }
-    }
-    if all > 0 {
-        return f64::from(seen) / f64::from(all);
-    }
-    let corners = sroot.corners();
-    let targets = std::iter::once(c).chain(corners.iter().map(|&k| c + 0.5 * (k - c)));
-    for q in targets {
-        all += 1;
-        if ctx.visibility.visible(p, q, ignore) {
-            seen += 1;
-        }
-    }
-    f64::from(seen) / f64::from(all)
-}
-
-/// [`SEEN_DIRECTIONS`] about the normal `n`, as unit vectors.
-fn seen_directions(n: DVec3) -> impl Iterator<Item = DVec3> {
-    let t1 = n.any_orthonormal_vector();
-    let t2 = n.cross(t1);
-    SEEN_DIRECTIONS.iter().map(move |&(a, b)| {
-        let (r, phi) = (a.sqrt(), std::f64::consts::TAU * b);
-        t1 * (r * phi.cos()) + t2 * (r * phi.sin()) + n * (1.0 - a).sqrt()
-    })
-}
-
-/// Where the ray from `p` along `d` meets `root`'s domain from its front side, if it does.
-fn ray_meets_root(p: DVec3, d: DVec3, root: &ElementRoot) -> Option<DVec3> {
-    let f = &root.frame;
-    let across = root.normal.dot(d);
-    if across >= 0.0 {
-        return None;
-    }
-    let t = root.normal.dot(f.origin - p) / across;
-    if t <= 0.0 {
-        return None;
-    }
-    let x = p + d * t - f.origin;
-    let (uu, uv, vv) = (f.u.dot(f.u), f.u.dot(f.v), f.v.dot(f.v));
-    let (xu, xv) = (x.dot(f.u), x.dot(f.v));
-    let det = uu * vv - uv * uv;
-    if det <= 0.0 {
-        return None;
-    }
-    let s = (xu * vv - xv * uv) / det;
-    let w = (xv * uu - xu * uv) / det;
-    let inside = match root.shape {
-        Shape::Triangle => s >= 0.0 && w >= 0.0 && s + w <= 1.0,
-        Shape::Parallelogram => (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&w),
-    };
-    inside.then(|| p + d * t)
-}
-
-/// The indirect phase foreseen (`indirect_forecast.rs`) from `unshot` W per root, down to
-/// `target` W: reflected light lands in proportion to face area times reflectance, and roots
-/// exchange light as a shot's plan foresees it (`unoccluded_received`, `faces_each_other`).
-pub(super) fn foresee_indirect(
-    ctx: &ShotContext,
-    hierarchies: &[Hierarchy],
-    unshot: &[f64],
-    target: f64,
-    facing_eps: f64,
-) -> IndirectForecast {
-    let roots = ctx.roots;
-    let receives = |r: usize| !hierarchies[r].nodes.is_empty();
-    let share: Vec<f64> = (0..roots.len())
-        .map(|r| {
-            if receives(r) {
-                roots[r].face_area_m2 * mean_rgb_sum(roots[r].rho)
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let input = ForecastInput {
-        unshot,
-        share: &share,
-        target,
-        threshold: ctx.threshold,
-    };
-    let faces = |s: usize, r: usize| {
-        let (ss, sr) = (&ctx.spheres[s], &ctx.spheres[r]);
-        receives(r) && faces_each_other(&roots[s], ss, &roots[r], sr, facing_eps)
-    };
-    forecast(
-        &input,
-        &|s, r| {
-            faces(s, r)
-                .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
-        },
-        &faces,
-    )
-}
-
 /// Unshot power, counted over each face only (never over the empty part of a domain).
 pub(super) fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
     mean_rgb_sum(face_integral(h, &h.u, r))
-}
-
-/// The power root `ri` would get from root `shooter` sending `power` W evenly over its domain
-/// with no occluder: its face area times a form factor to the shooter's domain. A far receiver
-/// takes the point estimate at its centre (`far_field::point_form_factor`); a near one the form
-/// factor averaged over its centre and corners (one of them may see the shooter when the centre
-/// does not). A cost and reflection estimate for the ETA, not a transfer: it runs for every
-/// receiver of every shot, so it allocates nothing.
-fn unoccluded_received(ctx: &ShotContext, shooter: usize, power: f64, ri: usize) -> f64 {
-    let (sroot, receiver) = (&ctx.roots[shooter], &ctx.roots[ri]);
-    let (s, r) = (&ctx.spheres[shooter], &ctx.spheres[ri]);
-    let ff = far_field::point_form_factor(sroot, s, receiver, r).unwrap_or_else(|| {
-        let polygon = sroot.corners();
-        let corners = receiver.corners();
-        let points = corners.iter().copied().chain(std::iter::once(r.centre));
-        let n = corners.len() as f64 + 1.0;
-        points
-            .filter(|p| sroot.normal.dot(*p - polygon[0]) > 0.0)
-            .map(|p| point_polygon_form_factor(p, receiver.normal, &polygon))
-            .sum::<f64>()
-            / n
-    });
-    power / sroot.area_m2 * ff.min(1.0) * receiver.face_area_m2
-}
-
-/// Can any point of `a` (front side) see any point of `b` (front side)? Some corner of each lies
-/// in front of the other's plane (by more than `eps`). `sa` and `sb` are the roots' bounding
-/// spheres (`Sphere::of_root`): a root whose sphere lies wholly behind the other's plane has no
-/// corner in front of it, which decides most pairs before any corner is computed (the plan asks
-/// for every root of every shot). `tests::the_spheres_decide_as_the_corners_do`.
-fn faces_each_other(a: &ElementRoot, sa: &Sphere, b: &ElementRoot, sb: &Sphere, eps: f64) -> bool {
-    let behind = |n: DVec3, o: DVec3, s: &Sphere| n.dot(s.centre - o) + s.radius < 0.0;
-    if behind(a.normal, a.frame.origin, sb) || behind(b.normal, b.frame.origin, sa) {
-        return false;
-    }
-    faces_each_other_by_corners(a, b, eps)
-}
-
-/// [`faces_each_other`] from the corners alone.
-fn faces_each_other_by_corners(a: &ElementRoot, b: &ElementRoot, eps: f64) -> bool {
-    let ca = a.corners();
-    let cb = b.corners();
-    let b_in_front_of_a = cb.iter().any(|p| a.normal.dot(*p - ca[0]) > eps);
-    let a_in_front_of_b = ca.iter().any(|p| b.normal.dot(*p - cb[0]) > eps);
-    b_in_front_of_a && a_in_front_of_b
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::solver::element::tests::parallelogram_root;
-
-    /// The directions of the seen fraction: unit, in the hemisphere, their mean cosine that of a
-    /// cosine-weighted hemisphere (2/3, within the grid's error) and no tangential bias.
-    #[test]
-    fn seen_directions_are_cosine_weighted() {
-        let n = DVec3::new(0.3, -0.5, 0.8).normalize();
-        let mut sum = DVec3::ZERO;
-        for d in seen_directions(n) {
-            assert!((d.length() - 1.0).abs() < 1e-12 && d.dot(n) > 0.0);
-            sum += d;
-        }
-        let mean = sum / SEEN_DIRECTIONS.len() as f64;
-        assert!((mean.dot(n) - 2.0 / 3.0).abs() < 0.02, "{}", mean.dot(n));
-        assert!((mean - n * mean.dot(n)).length() < 1e-12);
-    }
-
-    /// `ray_meets_root` against a twin: the hit on the plane from the corners' normal, inside
-    /// when on the inner side of every edge; random roots of both shapes, rays from random
-    /// points on either side aimed around them (only those reaching the front count).
-    #[test]
-    fn a_ray_meets_a_root_where_its_twin_does() {
-        let mut rnd = crate::shuffle::uniform_sequence(91);
-        let mut vector = |scale: f64| DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale;
-        let (mut hits, mut misses) = (0, 0);
-        for i in 0..20_000 {
-            let mut root = parallelogram_root(vector(2.0), vector(2.0), vector(2.0));
-            if i % 2 == 1 {
-                root.shape = Shape::Triangle;
-            }
-            // Aimed at the root's plane around it: about half reach the front inside.
-            let p = vector(6.0);
-            let w = vector(2.0);
-            let st = glam::DVec2::new(w.x + 0.5, w.y + 0.5);
-            let d = (root.frame.point(st) - p).normalize();
-            let corners = root.corners();
-            let k = corners.len();
-            let normal = (corners[1] - corners[0])
-                .cross(corners[k - 1] - corners[0])
-                .normalize();
-            let twin = {
-                let t = normal.dot(corners[0] - p) / normal.dot(d);
-                let x = p + d * t;
-                let inner = (0..k).all(|e| {
-                    let (a, b) = (corners[e], corners[(e + 1) % k]);
-                    (b - a).cross(x - a).dot(normal) >= 0.0
-                });
-                (normal.dot(d) < 0.0 && t > 0.0 && inner).then_some(x)
-            };
-            match (ray_meets_root(p, d, &root), twin) {
-                (Some(a), Some(b)) => {
-                    assert!(a.distance(b) < 1e-9, "{a} {b}");
-                    hits += 1;
-                }
-                (None, None) => misses += 1,
-                (a, b) => panic!("{i}: {a:?} against {b:?}"),
-            }
-        }
-        assert!(hits > 1000 && misses > 1000, "{hits} {misses}");
-    }
-
-    /// The sphere test decides as the corners do, for random pairs of parallelograms and
-    /// triangles in every orientation, many of them touching or crossing.
-    #[test]
-    fn the_spheres_decide_as_the_corners_do() {
-        let mut rnd = crate::shuffle::uniform_sequence(77);
-        let mut vector = |scale: f64| DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5) * scale;
-        let (mut facing, mut apart, mut by_spheres) = (0, 0, 0);
-        for i in 0..20_000 {
-            let mut root = |shape| {
-                let mut r = parallelogram_root(vector(4.0), vector(2.0), vector(2.0));
-                r.shape = shape;
-                r
-            };
-            let shapes = [Shape::Parallelogram, Shape::Triangle];
-            let (a, b) = (root(shapes[i % 2]), root(shapes[i / 2 % 2]));
-            let (sa, sb) = (Sphere::of_root(&a), Sphere::of_root(&b));
-            let eps = 1e-9;
-            let expected = faces_each_other_by_corners(&a, &b, eps);
-            let behind = |n: DVec3, o: DVec3, s: &Sphere| n.dot(s.centre - o) + s.radius < 0.0;
-            if behind(a.normal, a.frame.origin, &sb) || behind(b.normal, b.frame.origin, &sa) {
-                by_spheres += 1;
-            }
-            assert_eq!(
-                faces_each_other(&a, &sa, &b, &sb, eps),
-                expected,
-                "pair {i}"
-            );
-            if expected {
-                facing += 1;
-            } else {
-                apart += 1;
-            }
-        }
-        assert!(
-            facing > 2_000 && apart > 2_000,
-            "{facing} facing, {apart} not"
-        );
-        assert!(
-            by_spheres > 1_000,
-            "{by_spheres} pairs decided by the spheres"
-        );
-    }
+    use glam::DVec3;
 
     /// A pass: the root with the most unshot power first, then by decreasing power (ties by
     /// index) the roots with at least `PASS_SHARE` of it that face none of those taken, at most

@@ -316,25 +316,22 @@ fn eta_of_a_direct_shot_in_progress() {
         e.estimate(10.0, 0.0),
         10.0 + 20.0 + prior(40.0, 200.0, 40.0)
     ));
-    // Its receivers got half what was expected.
+    // Its receivers got half what was expected. Then the receivers done: a fifth says 40 s
+    // more, more than its cost done says, and the larger counts (the queued shot as long as
+    // this one, 50 s); half says less, and the cost done's counts.
     e.returns_seen(0.5);
-    assert!(close(
-        e.estimate(10.0, 0.25),
-        30.0 + 40.0 + prior(80.0, 200.0, 20.0)
-    ));
-    // A fifth of its receivers done says 40 s more, more than its cost done says: the larger
-    // (and the queued shot as long as this one, 50 s).
-    e.receivers_done(0.2);
-    assert!(close(
-        e.estimate(10.0, 0.25),
-        40.0 + 50.0 + prior(100.0, 200.0, 20.0)
-    ));
-    // Half of them done says less: the cost done's.
-    e.receivers_done(0.5);
-    assert!(close(
-        e.estimate(10.0, 0.25),
-        30.0 + 40.0 + prior(80.0, 200.0, 20.0)
-    ));
+    let cases = [
+        (None, 30.0, 40.0, 80.0),
+        (Some(0.2), 40.0, 50.0, 100.0),
+        (Some(0.5), 30.0, 40.0, 80.0),
+    ];
+    for (receivers, rest, queued, phase) in cases {
+        if let Some(r) = receivers {
+            e.receivers_done(r);
+        }
+        let expected = rest + queued + prior(phase, 200.0, 20.0);
+        assert!(close(e.estimate(10.0, 0.25), expected), "{receivers:?}");
+    }
     e.shot_finished(40.0, 0.9, 200.0);
     let last = ShotPlan {
         kind: ShotKind::Direct { left: 0 },
