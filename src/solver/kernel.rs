@@ -132,14 +132,14 @@ const ATAN_SERIES: [f64; 7] = [
     1.0 / 13.0,
 ];
 
-/// The angle between two vectors whose cross product has length `cross` and whose dot product
-/// is `dot` (`cross.atan2(dot)`). An edge of a many-sided face seen from afar subtends a small
+/// `cross.atan2(dot)`: the angle between two vectors whose cross product has length `cross` and
+/// whose dot product is `dot`. An edge of a many-sided face seen from afar subtends a small
 /// angle, and a contour integral takes one per edge: below [`SERIES_MAX_TAN`] the arctangent's
 /// series to `t^13` stands in for the library's `atan2` (a few multiplications against its
 /// rounding-mode guarded evaluation), within `1e-12` of it relatively
 /// (`tests::the_edge_angle_is_atan2`).
 fn edge_angle(cross: f64, dot: f64) -> f64 {
-    if dot > 0.0 && cross <= SERIES_MAX_TAN * dot {
+    if dot > 0.0 && cross.abs() <= SERIES_MAX_TAN * dot {
         let t = cross / dot;
         let t2 = t * t;
         let series = ATAN_SERIES.iter().rev().fold(0.0, |acc, c| acc * t2 + c);
@@ -171,7 +171,7 @@ mod tests {
         assert!(worst < 1e-12, "{worst}");
         let mut rnd = crate::shuffle::uniform_sequence(5);
         for _ in 0..100_000 {
-            let (cross, dot) = (rnd() * 3.0, (rnd() - 0.3) * 4.0);
+            let (cross, dot) = ((rnd() - 0.2) * 3.0, (rnd() - 0.3) * 4.0);
             let expected = cross.atan2(dot);
             let got = edge_angle(cross, dot);
             assert!(

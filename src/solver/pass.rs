@@ -2,8 +2,9 @@
 //! shot alone, else the root with the most unshot power and roots of at least half its power that
 //! face none of the pass's others), the plan over the receivers (what each would get with no
 //! occluder: the cost weights of the progress and the ETA, and at the first direct shot the
-//! indirect phase foreseen from it, `forecast_inputs.rs`), and the parallel loop in which every receiver takes each shooter's
-//! light (a far link, or links refined and judged on their nodes' sums).
+//! indirect phase foreseen from it, `forecast_inputs.rs`), and the parallel loop in which every
+//! receiver takes each shooter's light (a far link, or links refined and judged on their nodes'
+//! sums).
 //!
 //! Invariants: no root of a pass receives from another of it (`faces_each_other`, asserted in
 //! debug builds), so a pass changes only the order of shots; the shooters' trees are read-only

@@ -1,9 +1,10 @@
 //! What one root could send another with no occluder: whether they face each other at all, and
 //! the power one would receive of what the other sends. A shot's plan asks it of every root
-//! (`pass.rs`), and so does the indirect forecast (`forecast_inputs.rs`): it allocates nothing.
+//! (`pass.rs`), and so does the indirect forecast (`forecast_inputs.rs`): it allocates only where
+//! the shooter crosses a receiving point's tangent plane (the contour integral's clipping).
 //!
-//! Invariant: two roots that do not face each other exchange no light in the solve (the
-//! recursion's own tests agree), so a pass may take them together.
+//! Invariant: a pass visits only the receivers that face one of its shooters, and two roots that
+//! do not face each other exchange no light, so a pass may take such roots together.
 
 use super::element::Sphere;
 use super::far_field;
@@ -17,7 +18,7 @@ use glam::DVec3;
 /// takes the point estimate at its centre (`far_field::point_form_factor`); a near one the form
 /// factor averaged over its centre and corners (one of them may see the shooter when the centre
 /// does not). A cost and reflection estimate for the ETA, not a transfer: it runs for every
-/// receiver of every shot, so it allocates nothing.
+/// receiver of every shot, so it allocates only where the contour integral clips.
 pub(super) fn unoccluded_received(ctx: &ShotContext, shooter: usize, power: f64, ri: usize) -> f64 {
     let (sroot, receiver) = (&ctx.roots[shooter], &ctx.roots[ri]);
     let (s, r) = (&ctx.spheres[shooter], &ctx.spheres[ri]);
