@@ -12,8 +12,8 @@ use super::indirect_forecast::{forecast, ForecastInput, IndirectForecast};
 use super::mean_rgb_sum;
 use super::refine::ShotContext;
 use super::unoccluded::{faces_each_other, unoccluded_received};
-use crate::domain::{ElementRoot, Shape};
-use glam::DVec3;
+use crate::domain::{plane_coordinates, ElementRoot, Shape};
+use glam::{DVec2, DVec3};
 use rayon::prelude::*;
 
 /// The indirect phase foreseen at the start of the first direct shot, from what that shot (of
@@ -121,20 +121,13 @@ fn ray_meets_root(p: DVec3, d: DVec3, root: &ElementRoot) -> Option<DVec3> {
     if t <= 0.0 {
         return None;
     }
-    let x = p + d * t - f.origin;
-    let (uu, uv, vv) = (f.u.dot(f.u), f.u.dot(f.v), f.v.dot(f.v));
-    let (xu, xv) = (x.dot(f.u), x.dot(f.v));
-    let det = uu * vv - uv * uv;
-    if det <= 0.0 {
-        return None;
-    }
-    let s = (xu * vv - xv * uv) / det;
-    let w = (xv * uu - xu * uv) / det;
+    let hit = p + d * t;
+    let DVec2 { x: s, y: w } = plane_coordinates(f, hit);
     let inside = match root.shape {
         Shape::Triangle => s >= 0.0 && w >= 0.0 && s + w <= 1.0,
         Shape::Parallelogram => (0.0..=1.0).contains(&s) && (0.0..=1.0).contains(&w),
     };
-    inside.then(|| p + d * t)
+    inside.then_some(hit)
 }
 
 /// The indirect phase foreseen (`indirect_forecast.rs`) from `unshot` W per root, down to
