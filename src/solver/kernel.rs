@@ -78,46 +78,69 @@ pub fn rule_suffices_radii(order: usize) -> f64 {
 /// Lambert's contour integral over the polygon clipped to the front of `x`'s tangent plane; its
 /// sign follows the polygon's orientation.
 fn signed_contour_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    // Wholly in front (the usual case): clipping would copy the polygon; it runs once per
-    // quadrature point of every link, so it allocates only when it cuts.
-    if polygon.iter().all(|p| n.dot(*p - x) >= 0.0) {
-        return front_contour_integral(x, n, polygon);
+    // Wholly in front (the usual case): one pass over the edges, which also finds whether some
+    // vertex lies behind; only then is the polygon clipped (it allocates where it cuts) and
+    // integrated again.
+    let whole = contour_sum(x, n, polygon);
+    if whole.lowest >= 0.0 {
+        return whole.form_factor();
     }
     let mut clipped = Vec::with_capacity(polygon.len() + 2);
     clip_to_front(x, n, polygon, &mut clipped);
-    front_contour_integral(x, n, &clipped)
+    contour_sum(x, n, &clipped).form_factor()
 }
 
-/// Lambert's contour integral over a polygon wholly in front of `x`'s tangent plane.
-fn front_contour_integral(x: DVec3, n: DVec3, clipped: &[DVec3]) -> f64 {
-    if clipped.len() < 3 {
-        return 0.0;
-    }
-    // A polygon lying in the tangent plane subtends no projected solid angle.
-    let (height, extent2) = clipped.iter().fold((f64::MIN, 0.0f64), |(h, e), p| {
-        let d = *p - x;
-        (h.max(n.dot(d)), e.max(d.length_squared()))
-    });
-    if height <= 1e-12 * extent2.sqrt() {
-        return 0.0;
-    }
-    let mut sum = 0.0;
-    let m = clipped.len();
-    for i in 0..m {
-        let a = clipped[i] - x;
-        let b = clipped[(i + 1) % m] - x;
-        let c = a.cross(b);
-        let cl = c.length();
-        if cl <= 1e-300 {
-            continue;
+/// One pass of Lambert's contour integral over a polygon as seen from `x` (normal `n`): the
+/// edges' terms summed in order, and what decides whether the sum stands.
+struct ContourSum {
+    /// `sum` over the edges of `angle(a, b) n.(a x b) / |a x b|` ([`edge_term`]).
+    terms: f64,
+    /// The lowest and highest height `n.(p - x)` of a vertex, and the largest `|p - x|^2`.
+    lowest: f64,
+    highest: f64,
+    extent2: f64,
+    vertices: usize,
+}
+
+impl ContourSum {
+    /// The form factor of a polygon wholly in front of the tangent plane: zero for fewer than
+    /// three vertices, and for a polygon lying in the tangent plane (it subtends no projected
+    /// solid angle).
+    fn form_factor(&self) -> f64 {
+        if self.vertices < 3 || self.highest <= 1e-12 * self.extent2.sqrt() {
+            return 0.0;
         }
-        let angle = edge_angle(cl, a.dot(b));
-        sum += angle * n.dot(c) / cl;
+        self.terms / (2.0 * PI)
     }
-    sum / (2.0 * PI)
 }
 
-/// The largest tangent [`edge_angle`] takes by its series: there the series' first term left out
+/// The edges' terms of `polygon` (closed: its last vertex joins its first) from `x` (normal
+/// `n`), with the vertices' heights and extent, in one pass.
+fn contour_sum(x: DVec3, n: DVec3, polygon: &[DVec3]) -> ContourSum {
+    let mut out = ContourSum {
+        terms: 0.0,
+        lowest: f64::MAX,
+        highest: f64::MIN,
+        extent2: 0.0,
+        vertices: polygon.len(),
+    };
+    let Some(&last) = polygon.last() else {
+        return out;
+    };
+    let mut a = last - x;
+    for &p in polygon {
+        let b = p - x;
+        let height = n.dot(b);
+        out.lowest = out.lowest.min(height);
+        out.highest = out.highest.max(height);
+        out.extent2 = out.extent2.max(b.length_squared());
+        out.terms += edge_term(a.cross(b), a.dot(b), n);
+        a = b;
+    }
+    out
+}
+
+/// The largest tangent [`edge_term`] takes by its series: there the series' first term left out
 /// (`t^15 / 15`) is below `1e-13` of the angle.
 const SERIES_MAX_TAN: f64 = 0.125;
 
@@ -132,20 +155,39 @@ const ATAN_SERIES: [f64; 7] = [
     1.0 / 13.0,
 ];
 
-/// `cross.atan2(dot)`: the angle between two vectors whose cross product has length `cross` and
-/// whose dot product is `dot`. An edge of a many-sided face seen from afar subtends a small
-/// angle, and a contour integral takes one per edge: below [`SERIES_MAX_TAN`] the arctangent's
-/// series to `t^13` stands in for the library's `atan2` (a few multiplications against its
-/// rounding-mode guarded evaluation), within `1e-12` of it relatively
-/// (`tests::the_edge_angle_is_atan2`).
-fn edge_angle(cross: f64, dot: f64) -> f64 {
-    if dot > 0.0 && cross.abs() <= SERIES_MAX_TAN * dot {
-        let t = cross / dot;
-        let t2 = t * t;
-        let series = ATAN_SERIES.iter().rev().fold(0.0, |acc, c| acc * t2 + c);
-        t * series
+/// The arctangent's series over `t`, `S(t^2) = 1 - t^2/3 + ... + t^12/13`, by Estrin's scheme
+/// (powers `t^4`, `t^8` and pairs of terms evaluated side by side: a contour integral's edges
+/// are independent, and the processor overlaps the short chains of several where Horner's rule
+/// would chain seven multiply-adds per edge).
+#[inline]
+fn series(t2: f64) -> f64 {
+    let [k0, k1, k2, k3, k4, k5, k6] = ATAN_SERIES;
+    let t4 = t2 * t2;
+    let t8 = t4 * t4;
+    (k0 + k1 * t2) + t4 * (k2 + k3 * t2) + t8 * ((k4 + k5 * t2) + t4 * k6)
+}
+
+/// An edge's term of the contour integral, `angle(a, b) n.c / |c|`, from the cross product
+/// `c = a x b` and the dot product `dot = a.b` of the vectors from the point to its ends. An edge
+/// of a many-sided face seen from afar subtends a small angle: where the tangent `t = |c| / dot`
+/// is below [`SERIES_MAX_TAN`] the angle is `t S(t^2)`, `S` the arctangent's series to `t^13`,
+/// so the term is `S(|c|^2 / dot^2) n.c / dot`: no square root, one division, no `atan2`. Within
+/// `1e-12` of `atan2(|c|, dot) n.c / |c|` relatively (`tests::the_edge_term_is_the_atan2_one`).
+/// Zero for an edge through the point's line of sight (`c` zero).
+#[inline]
+fn edge_term(c: DVec3, dot: f64, n: DVec3) -> f64 {
+    let c2 = c.length_squared();
+    if c2 <= 0.0 {
+        return 0.0;
+    }
+    let nc = n.dot(c);
+    if dot > 0.0 && c2 <= SERIES_MAX_TAN * SERIES_MAX_TAN * dot * dot {
+        let r = 1.0 / dot;
+        let t2 = c2 * r * r;
+        series(t2) * nc * r
     } else {
-        cross.atan2(dot)
+        let cl = c2.sqrt();
+        cl.atan2(dot) * nc / cl
     }
 }
 
@@ -153,32 +195,106 @@ fn edge_angle(cross: f64, dot: f64) -> f64 {
 mod tests {
     use super::*;
 
-    /// The edge angle against the library's `atan2`: on a fine sweep of tangents through the
-    /// series' range and past it, and at random lengths, within `1e-12` relatively (the series
-    /// where the tangent is small, the library elsewhere).
+    /// An edge's term as the library's `atan2` gives it: `atan2(|c|, dot) n.c / |c|`.
+    fn atan2_term(c: DVec3, dot: f64, n: DVec3) -> f64 {
+        let cl = c.length();
+        cl.atan2(dot) * n.dot(c) / cl
+    }
+
+    /// The edge term against `atan2`'s, within `1e-12` of the angle: on a sweep of tangents
+    /// through the series' range, at three lengths and normals at three slants, then for random
+    /// pairs of vectors (either sign of the dot product, every tangent).
     #[test]
-    fn the_edge_angle_is_atan2() {
+    fn the_edge_term_is_the_atan2_one() {
         let mut worst: f64 = 0.0;
-        for i in 0..=20_000 {
-            let t = 0.3 * f64::from(i) / 20_000.0;
+        for i in 1..=20_000 {
+            let t = SERIES_MAX_TAN * 1.01 * f64::from(i) / 20_000.0;
             for dot in [1e-6, 1.0, 37.5] {
-                let (cross, expected) = (t * dot, (t * dot).atan2(dot));
-                let got = edge_angle(cross, dot);
-                let rel = (got - expected).abs() / expected.abs().max(1e-300);
-                worst = worst.max(rel);
+                for n in [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::X] {
+                    let c = DVec3::new(0.0, 0.6, 0.8) * (t * dot);
+                    let (got, expected) = (edge_term(c, dot, n), atan2_term(c, dot, n));
+                    worst = worst.max((got - expected).abs() / t.atan());
+                }
             }
         }
         assert!(worst < 1e-12, "{worst}");
         let mut rnd = crate::shuffle::uniform_sequence(5);
-        for _ in 0..100_000 {
-            let (cross, dot) = ((rnd() - 0.2) * 3.0, (rnd() - 0.3) * 4.0);
-            let expected = cross.atan2(dot);
-            let got = edge_angle(cross, dot);
+        let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+        let mut series = 0;
+        for k in 0..100_000 {
+            // Every other pair nearly parallel: the series' range.
+            let a = v();
+            let b = if k % 2 == 0 {
+                a * 20.0 + v()
+            } else {
+                v() * 8.0
+            };
+            let n = v().normalize();
+            let (c, dot) = (a.cross(b), a.dot(b));
+            let (got, expected) = (edge_term(c, dot, n), atan2_term(c, dot, n));
+            let angle = c.length().atan2(dot);
             assert!(
-                (got - expected).abs() <= 1e-12 * expected.abs(),
-                "{cross} {dot}: {got} {expected}"
+                (got - expected).abs() <= 1e-12 * angle,
+                "{a} {b}: {got} {expected}"
             );
+            series += usize::from(dot > 0.0 && c.length() <= SERIES_MAX_TAN * dot);
         }
+        assert!(
+            series > 1_000,
+            "the random pairs reach the series: {series}"
+        );
+        assert_eq!(edge_term(DVec3::ZERO, 1.0, DVec3::Z), 0.0);
+    }
+
+    /// The one-pass contour integral against a twin that integrates the clipped polygon edge by
+    /// edge with `atan2`: random polygons (stars about a random centre, in a random plane) seen
+    /// from random points, some with the polygon crossing their tangent plane, within `1e-12` of
+    /// the sum of the edges' absolute terms.
+    #[test]
+    fn the_contour_integral_is_its_atan2_twin() {
+        let twin = |x: DVec3, n: DVec3, polygon: &[DVec3]| {
+            let mut clipped = Vec::new();
+            clip_to_front(x, n, polygon, &mut clipped);
+            let (mut sum, mut scale) = (0.0, 0.0);
+            for i in 0..clipped.len() {
+                let (a, b) = (clipped[i] - x, clipped[(i + 1) % clipped.len()] - x);
+                let c = a.cross(b);
+                if c.length() > 0.0 {
+                    let term = atan2_term(c, a.dot(b), n);
+                    sum += term;
+                    scale += term.abs();
+                }
+            }
+            (sum / (2.0 * PI), scale / (2.0 * PI))
+        };
+        let mut rnd = crate::shuffle::uniform_sequence(17);
+        let (mut cut, mut whole) = (0, 0);
+        for k in 0..3_000 {
+            let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+            let (centre, u) = (v() * 4.0, v().normalize());
+            let w = u.cross(v()).normalize();
+            let sides = 3 + k % 70;
+            let polygon: Vec<DVec3> = (0..sides)
+                .map(|i| {
+                    let angle = 2.0 * PI * i as f64 / sides as f64;
+                    let r = 0.2 + (i % 3) as f64 * 0.4;
+                    centre + (u * angle.cos() + w * angle.sin()) * r
+                })
+                .collect();
+            let (x, n) = (v() * 6.0, v().normalize());
+            let got = signed_contour_form_factor(x, n, &polygon);
+            let (expected, scale) = twin(x, n, &polygon);
+            assert!(
+                (got - expected).abs() <= 1e-12 * scale.max(1e-300),
+                "{k}: {got} {expected}"
+            );
+            if polygon.iter().all(|p| n.dot(*p - x) >= 0.0) {
+                whole += 1;
+            } else if expected != 0.0 {
+                cut += 1;
+            }
+        }
+        assert!(cut > 300 && whole > 300, "{cut} cut, {whole} whole");
     }
 
     fn unit_square_at(z: f64) -> Vec<DVec3> {
