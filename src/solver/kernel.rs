@@ -78,12 +78,10 @@ pub fn rule_suffices_radii(order: usize) -> f64 {
 /// Lambert's contour integral over the polygon clipped to the front of `x`'s tangent plane; its
 /// sign follows the polygon's orientation.
 fn signed_contour_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
-    // Wholly in front (the usual case): one pass over the edges, which also finds whether some
-    // vertex lies behind; only then is the polygon clipped (it allocates where it cuts) and
-    // integrated again.
-    let whole = contour_sum(x, n, polygon);
-    if whole.lowest >= 0.0 {
-        return whole.form_factor();
+    // Wholly in front (the usual case): clipping would copy the polygon; it runs once per
+    // quadrature point of every link, so it allocates only when it cuts.
+    if polygon.iter().all(|p| n.dot(*p - x) >= 0.0) {
+        return contour_sum(x, n, polygon).form_factor();
     }
     let mut clipped = Vec::with_capacity(polygon.len() + 2);
     clip_to_front(x, n, polygon, &mut clipped);
@@ -95,8 +93,7 @@ fn signed_contour_form_factor(x: DVec3, n: DVec3, polygon: &[DVec3]) -> f64 {
 struct ContourSum {
     /// `sum` over the edges of `angle(a, b) n.(a x b) / |a x b|` ([`edge_term`]).
     terms: f64,
-    /// The lowest and highest height `n.(p - x)` of a vertex, and the largest `|p - x|^2`.
-    lowest: f64,
+    /// The greatest height `n.(p - x)` of a vertex, and the largest `|p - x|^2`.
     highest: f64,
     extent2: f64,
     vertices: usize,
@@ -115,11 +112,10 @@ impl ContourSum {
 }
 
 /// The edges' terms of `polygon` (closed: its last vertex joins its first) from `x` (normal
-/// `n`), with the vertices' heights and extent, in one pass.
+/// `n`), with the vertices' greatest height and extent, in one pass.
 fn contour_sum(x: DVec3, n: DVec3, polygon: &[DVec3]) -> ContourSum {
     let mut out = ContourSum {
         terms: 0.0,
-        lowest: f64::MAX,
         highest: f64::MIN,
         extent2: 0.0,
         vertices: polygon.len(),
@@ -130,9 +126,7 @@ fn contour_sum(x: DVec3, n: DVec3, polygon: &[DVec3]) -> ContourSum {
     let mut a = last - x;
     for &p in polygon {
         let b = p - x;
-        let height = n.dot(b);
-        out.lowest = out.lowest.min(height);
-        out.highest = out.highest.max(height);
+        out.highest = out.highest.max(n.dot(b));
         out.extent2 = out.extent2.max(b.length_squared());
         out.terms += edge_term(a.cross(b), a.dot(b), n);
         a = b;
@@ -210,7 +204,7 @@ mod tests {
         for i in 1..=20_000 {
             let t = SERIES_MAX_TAN * 1.01 * f64::from(i) / 20_000.0;
             for dot in [1e-6, 1.0, 37.5] {
-                for n in [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::X] {
+                for n in [DVec3::Z, DVec3::new(0.6, 0.0, 0.8), DVec3::NEG_Y] {
                     let c = DVec3::new(0.0, 0.6, 0.8) * (t * dot);
                     let (got, expected) = (edge_term(c, dot, n), atan2_term(c, dot, n));
                     worst = worst.max((got - expected).abs() / t.atan());
@@ -220,7 +214,7 @@ mod tests {
         assert!(worst < 1e-12, "{worst}");
         let mut rnd = crate::shuffle::uniform_sequence(5);
         let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
-        let mut series = 0;
+        let mut series_pairs = 0;
         for k in 0..100_000 {
             // Every other pair nearly parallel: the series' range.
             let a = v();
@@ -237,11 +231,11 @@ mod tests {
                 (got - expected).abs() <= 1e-12 * angle,
                 "{a} {b}: {got} {expected}"
             );
-            series += usize::from(dot > 0.0 && c.length() <= SERIES_MAX_TAN * dot);
+            series_pairs += usize::from(dot > 0.0 && c.length() <= SERIES_MAX_TAN * dot);
         }
         assert!(
-            series > 1_000,
-            "the random pairs reach the series: {series}"
+            series_pairs > 1_000,
+            "the random pairs reach the series: {series_pairs}"
         );
         assert_eq!(edge_term(DVec3::ZERO, 1.0, DVec3::Z), 0.0);
     }
@@ -255,7 +249,7 @@ mod tests {
         let twin = |x: DVec3, n: DVec3, polygon: &[DVec3]| {
             let mut clipped = Vec::new();
             clip_to_front(x, n, polygon, &mut clipped);
-            let (mut sum, mut scale) = (0.0, 0.0);
+            let (mut sum, mut scale, mut series_edges) = (0.0, 0.0, 0);
             for i in 0..clipped.len() {
                 let (a, b) = (clipped[i] - x, clipped[(i + 1) % clipped.len()] - x);
                 let c = a.cross(b);
@@ -263,12 +257,14 @@ mod tests {
                     let term = atan2_term(c, a.dot(b), n);
                     sum += term;
                     scale += term.abs();
+                    series_edges +=
+                        usize::from(a.dot(b) > 0.0 && c.length() <= SERIES_MAX_TAN * a.dot(b));
                 }
             }
-            (sum / (2.0 * PI), scale / (2.0 * PI))
+            (sum / (2.0 * PI), scale / (2.0 * PI), series_edges)
         };
         let mut rnd = crate::shuffle::uniform_sequence(17);
-        let (mut cut, mut whole) = (0, 0);
+        let (mut cut, mut whole, mut series_edges) = (0, 0, 0);
         for k in 0..3_000 {
             let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
             let (centre, u) = (v() * 4.0, v().normalize());
@@ -283,7 +279,8 @@ mod tests {
                 .collect();
             let (x, n) = (v() * 6.0, v().normalize());
             let got = signed_contour_form_factor(x, n, &polygon);
-            let (expected, scale) = twin(x, n, &polygon);
+            let (expected, scale, series) = twin(x, n, &polygon);
+            series_edges += series;
             assert!(
                 (got - expected).abs() <= 1e-12 * scale.max(1e-300),
                 "{k}: {got} {expected}"
@@ -295,6 +292,29 @@ mod tests {
             }
         }
         assert!(cut > 300 && whole > 300, "{cut} cut, {whole} whole");
+        assert!(series_edges > 10_000, "{series_edges} edges by the series");
+    }
+
+    /// What subtends no projected solid angle: fewer than three vertices, a polygon lying in the
+    /// point's tangent plane, a polygon wholly behind it.
+    #[test]
+    fn degenerate_and_hidden_polygons_have_no_form_factor() {
+        let square = unit_square_at(0.0);
+        assert_eq!(
+            point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &square),
+            0.0
+        );
+        assert_eq!(
+            point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &square[..2]),
+            0.0
+        );
+        assert_eq!(point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &[]), 0.0);
+        let below = unit_square_at(-1.0);
+        assert_eq!(
+            point_polygon_form_factor(DVec3::ZERO, DVec3::Z, &below),
+            0.0
+        );
+        assert!(point_polygon_form_factor(DVec3::ZERO, DVec3::NEG_Z, &below) > 0.2);
     }
 
     fn unit_square_at(z: f64) -> Vec<DVec3> {
