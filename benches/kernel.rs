@@ -2,10 +2,11 @@
 //! exact form factor of a partly covered source element, per edge: rings of 8, 65 (the mean of a
 //! large level's indirect phase, docs/performance-notes.md) and 200 edges, seen from 64 points
 //! about 1, 4 and 16 ring radii above the ring, wholly in front of them, and from points 1 radius
-//! above whose tilted tangent plane cuts the ring ("cut": the ring is clipped, then integrated). Prints nanoseconds per edge (the call's own cost
-//! included), best of five rounds; the sum of the form factors is printed so the work cannot be
-//! optimised away. One ring and 64 points repeat: the data stays in the first-level cache and
-//! the branches are learnt, so the figures are a floor for the solver's, whose rings vary.
+//! above whose tilted tangent plane cuts the ring ("cut": the ring is clipped, then integrated).
+//! Prints nanoseconds per edge (the call's own cost included), best of five rounds; the sum of
+//! the form factors is printed so the work cannot be optimised away. One ring and 64 points
+//! repeat: the data stays in the first-level cache and the branches are learnt, so the figures
+//! are a floor for the solver's, whose rings vary.
 //!
 //! Run: `cargo bench --bench kernel`.
 

@@ -50,8 +50,9 @@ pub(super) const POINT_ESTIMATE_RADII: f64 = 4.0;
 /// area, `A cos_s cos_r / (pi d^2)` (0 when either faces away), when the centres are at least
 /// [`POINT_ESTIMATE_RADII`] times the sum of the radii apart; `None` nearer. Its relative error
 /// is of the order of `(r / d)^2`: `point_estimate_is_close_to_the_polygon_form_factor` pins it
-/// within 5 % of the exact form factor (at grazing angles, of 0.3 times the head-on one). A cost and reflection estimate (`unoccluded.rs`), one
-/// evaluation instead of a polygon's contour integral at five points.
+/// within 5 % of the exact form factor (at grazing angles, of 0.3 times the head-on one). A cost
+/// and reflection estimate (`unoccluded.rs`), one evaluation instead of a polygon's contour
+/// integral at five points.
 pub(super) fn point_form_factor(
     shooter: &ElementRoot,
     s: &Sphere,

@@ -195,6 +195,11 @@ mod tests {
         cl.atan2(dot) * n.dot(c) / cl
     }
 
+    /// Does [`edge_term`] take the edge of cross product `c` and dot product `dot` by the series?
+    fn by_the_series(c: DVec3, dot: f64) -> bool {
+        dot > 0.0 && c.length() <= SERIES_MAX_TAN * dot
+    }
+
     /// The edge term against `atan2`'s, within `1e-12` of the angle: on a sweep of tangents
     /// through the series' range, at three lengths and normals at three slants, then for random
     /// pairs of vectors (either sign of the dot product, every tangent).
@@ -231,7 +236,7 @@ mod tests {
                 (got - expected).abs() <= 1e-12 * angle,
                 "{a} {b}: {got} {expected}"
             );
-            series_pairs += usize::from(dot > 0.0 && c.length() <= SERIES_MAX_TAN * dot);
+            series_pairs += usize::from(by_the_series(c, dot));
         }
         assert!(
             series_pairs > 1_000,
@@ -252,13 +257,12 @@ mod tests {
             let (mut sum, mut scale, mut series_edges) = (0.0, 0.0, 0);
             for i in 0..clipped.len() {
                 let (a, b) = (clipped[i] - x, clipped[(i + 1) % clipped.len()] - x);
-                let c = a.cross(b);
+                let (c, dot) = (a.cross(b), a.dot(b));
                 if c.length() > 0.0 {
-                    let term = atan2_term(c, a.dot(b), n);
+                    let term = atan2_term(c, dot, n);
                     sum += term;
                     scale += term.abs();
-                    series_edges +=
-                        usize::from(a.dot(b) > 0.0 && c.length() <= SERIES_MAX_TAN * a.dot(b));
+                    series_edges += usize::from(by_the_series(c, dot));
                 }
             }
             (sum / (2.0 * PI), scale / (2.0 * PI), series_edges)
