@@ -765,3 +765,89 @@ fn a_small_face_sees_a_large_sky_through_a_strip_over_a_parapet() {
         );
     }
 }
+
+/// Tiles with gaps between them, facing up (a floor) and down (a ceiling), two posts between, and
+/// a small emitter in the ceiling: small roots that light one another shot after shot, some of
+/// them far enough apart for far links (`far_field.rs`).
+fn tiled_room() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let grey = b.material([0.7; 3], [0.0; 3], false);
+    let lamp = b.material([0.0; 3], [5.0; 3], false);
+    let (k, pitch, tile) = (8, 0.5, 0.3);
+    for i in 0..k {
+        for j in 0..k {
+            let (x, y) = (f64::from(i) * pitch, f64::from(j) * pitch);
+            b.quad(
+                grey,
+                DVec3::new(x, y, 0.0),
+                DVec3::X * tile,
+                DVec3::Y * tile,
+                1,
+            );
+            b.quad(
+                grey,
+                DVec3::new(x, y, 2.0),
+                DVec3::Y * tile,
+                DVec3::X * tile,
+                1,
+            );
+        }
+    }
+    b.quad(
+        lamp,
+        DVec3::new(1.9, 1.9, 1.9),
+        DVec3::Y * 0.2,
+        DVec3::X * 0.2,
+        1,
+    );
+    for x in [1.2, 2.7] {
+        b.inward_box(
+            [grey; 6],
+            DVec3::new(x, 1.7, 0.1),
+            DVec3::new(x + 0.2, 1.9, 1.8),
+            1,
+        );
+    }
+    b.to_glb()
+}
+
+/// The far links' verdicts kept between a root's shots (`far_verdicts.rs`) change no light:
+/// with the tables and without (a budget of 0 bytes), the same shots, links, elements and
+/// radiosity everywhere, and fewer rays with them (a few here, where most links are near ones;
+/// the 70k-triangle level's figures are in docs/performance-notes.md).
+#[test]
+fn far_link_verdicts_kept_between_shots_change_no_light_and_save_rays() {
+    let glb = tiled_room();
+    let scene = load_scene(&glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
+    let run = |far_verdict_bytes: usize| {
+        let params = SolverParams {
+            far_verdict_bytes,
+            ..Default::default()
+        };
+        let cancel = AtomicBool::new(false);
+        bake(&scene, DomainMode::Extended, params, &cancel, &mut |_| {}).expect("bakes")
+    };
+    let ((_, kept), (_, traced)) = (run(SolverParams::default().far_verdict_bytes), run(0));
+    let (a, b) = (&kept.stats, &traced.stats);
+    println!(
+        "shots {} links {} elements {}; rays {} with the tables, {} without",
+        a.iterations, a.links, a.elements, a.rays, b.rays
+    );
+    assert!(a.iterations > 100, "the room needs many indirect shots");
+    assert_eq!(
+        (a.iterations, a.links, a.elements),
+        (b.iterations, b.links, b.elements)
+    );
+    assert_eq!(kept.roots.len(), traced.roots.len());
+    for root in 0..kept.roots.len() {
+        for st in [(0.1, 0.1), (0.5, 0.5), (0.3, 0.8), (0.9, 0.2)] {
+            let st = glam::DVec2::new(st.0, st.1);
+            assert_eq!(
+                kept.value_at(root, st),
+                traced.value_at(root, st),
+                "root {root}"
+            );
+        }
+    }
+    assert!(a.rays < b.rays, "{} rays against {}", a.rays, b.rays);
+}

@@ -18,6 +18,7 @@ use super::cover::NodeCover;
 use super::element::{
     partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, Patch,
 };
+use super::far_verdicts::VerdictTable;
 use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
 use super::kernel;
@@ -593,8 +594,16 @@ impl<'s> ElementSource<'s> {
     /// form factor even on a partly covered element (its coverage-weighted rule is a few percent
     /// off the face's exact form factor there). A far link's whole transfer is within the
     /// oracle's threshold (`far_field.rs`), the budget any other estimate of it would be
-    /// allowed. `None` when `x` is behind the source or the source's plane.
-    pub(super) fn far_irradiance_at(&self, x: DVec3, n: DVec3, ignore: [u32; 2]) -> Option<Rgb> {
+    /// allowed. `None` when `x` is behind the source or the source's plane. `verdict`: the
+    /// shooter's table of far links' verdicts and the receiver's index in it, which keeps the
+    /// ray's verdict for the pair (`far_verdicts.rs`).
+    pub(super) fn far_irradiance_at(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        ignore: [u32; 2],
+        verdict: Option<(&VerdictTable, usize)>,
+    ) -> Option<Rgb> {
         let f = if self
             .emitter
             .far_in_front(x, n, self.shot.rules.form_factor_radii)
@@ -606,7 +615,12 @@ impl<'s> ElementSource<'s> {
         if f <= 0.0 {
             return None;
         }
-        if self.centre_verdict(x, ignore) == 0 {
+        let trace = || self.centre_verdict(x, ignore) != 0;
+        let seen = match verdict {
+            Some((table, r)) => table.visible(r, trace),
+            None => trace(),
+        };
+        if !seen {
             // What `with_verdicts` gives with no point seen.
             return Some([0.0; 3]);
         }

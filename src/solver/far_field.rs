@@ -24,6 +24,7 @@
 
 use super::element::{visibility_point, Sphere};
 use super::element_source::ElementSource;
+use super::far_verdicts::VerdictTable;
 #[cfg(test)]
 use super::kernel::point_polygon_form_factor;
 use super::source::Source;
@@ -83,11 +84,17 @@ pub(super) fn link_point(root: &ElementRoot) -> DVec3 {
 }
 
 /// The irradiance one far link delivers to `root` at its [`link_point`] `x`, one shadow ray
-/// deciding its visibility (`ElementSource::far_irradiance_at`); `None` when `x` receives
-/// nothing from the source.
-pub(super) fn far_irradiance(source: &ElementSource, root: &ElementRoot, x: DVec3) -> Option<Rgb> {
+/// deciding its visibility (`ElementSource::far_irradiance_at`; read from `verdict`, the
+/// shooter's table and the receiver's index, when an earlier shot traced it); `None` when `x`
+/// receives nothing from the source.
+pub(super) fn far_irradiance(
+    source: &ElementSource,
+    root: &ElementRoot,
+    x: DVec3,
+    verdict: Option<(&VerdictTable, usize)>,
+) -> Option<Rgb> {
     let ignore = source.ignored_faces(root.face.0);
-    source.far_irradiance_at(x, root.normal, ignore)
+    source.far_irradiance_at(x, root.normal, ignore, verdict)
 }
 
 #[cfg(test)]
@@ -281,7 +288,7 @@ pub(super) mod tests {
                     .irradiance_at(x, receiver.normal, ignore, Rays::Trace)
                     .map(|p| p.e);
                 let before = visibility.rays_traced();
-                let far = far_irradiance(source, receiver, link_point(receiver));
+                let far = far_irradiance(source, receiver, link_point(receiver), None);
                 (whole, far, visibility.rays_traced() - before)
             })
         };
@@ -296,6 +303,32 @@ pub(super) mod tests {
             whole.is_some_and(|e| e[0] > 0.0),
             "the outer points see the source: {whole:?}"
         );
+    }
+
+    /// With the shooter's table of verdicts (`far_verdicts.rs`), a far link traces its ray the
+    /// first time only: the second takes the same light, blocked or not, with no ray.
+    #[test]
+    fn a_far_link_reads_its_verdict_back_from_the_shooters_table() {
+        use crate::solver::far_verdicts::FarVerdicts;
+        for blocked in [false, true] {
+            square_under_square(blocked, |source, receiver, visibility| {
+                let mut verdicts = FarVerdicts::new(2, usize::MAX);
+                verdicts.reserve(0);
+                let table = verdicts.table(0).expect("a table within the budget");
+                let x = link_point(receiver);
+                let untabled = far_irradiance(source, receiver, x, None);
+                let mut rays = Vec::new();
+                let mut far = Vec::new();
+                for _ in 0..2 {
+                    let before = visibility.rays_traced();
+                    far.push(far_irradiance(source, receiver, x, Some((table, 1))));
+                    rays.push(visibility.rays_traced() - before);
+                }
+                assert_eq!(rays, [1, 0], "blocked {blocked}");
+                assert_eq!(far, [untabled, untabled], "blocked {blocked}");
+                assert_eq!(untabled.is_some_and(|e| e[0] > 0.0), !blocked);
+            });
+        }
     }
 
     /// The point estimate against the exact form factor at the receiver's centre, for random

@@ -19,6 +19,7 @@ mod element;
 mod element_source;
 mod eta;
 mod far_field;
+mod far_verdicts;
 mod forecast_inputs;
 mod front_map;
 pub(crate) mod hierarchy;
@@ -73,6 +74,10 @@ pub const MIN_EDGE_REL: f64 = 1e-3;
 pub const DETAIL_REL: f64 = 0.01;
 /// How much lower than the tolerance's threshold the detail of direct light may be refined to.
 pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
+/// What the far links' shadow-ray verdicts may take by default (`far_verdicts.rs`): two bits per
+/// pair of shooter and receiver roots, so a level of 40 000 roots keeps the tables of 25 000
+/// shooters; beyond it a shooter traces its far links every shot.
+pub const FAR_VERDICT_BYTES: usize = 256 << 20;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
 /// Stack of each thread of a pool that solves: a thread waiting for a stolen piece of a direct
@@ -95,6 +100,9 @@ pub struct SolverParams {
     /// refine where that sum is not represented within the tolerance (`refine_by_node_sums`).
     /// On by default; off gives the per-link oracle alone (`tests/solver.rs` compares both).
     pub node_sums: bool,
+    /// Bytes the far links' shadow-ray verdicts may keep between a root's shots
+    /// (`far_verdicts.rs`); 0 traces every far link's ray every shot (the same solve, more rays).
+    pub far_verdict_bytes: usize,
 }
 
 impl Default for SolverParams {
@@ -108,6 +116,7 @@ impl Default for SolverParams {
             indirect_only: false,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             node_sums: true,
+            far_verdict_bytes: FAR_VERDICT_BYTES,
         }
     }
 }

@@ -17,6 +17,7 @@ use super::element::Sphere;
 use super::element_source::{ElementShot, ElementSource, SourceElement};
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field;
+use super::far_verdicts::{FarVerdicts, VerdictTable};
 use super::forecast_inputs::foresee_after_direct_shot;
 use super::hierarchy::Hierarchy;
 use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
@@ -170,8 +171,7 @@ pub(super) fn shoot(
     (shooters, kind): (&[usize], ShotKind),
     facing_eps: f64,
     target_unshot: f64,
-    hierarchies: &mut [Hierarchy],
-    unshot: &mut [f64],
+    (hierarchies, unshot, far_verdicts): (&mut [Hierarchy], &mut [f64], &mut FarVerdicts),
     (reporter, iterations): (&mut Reporter, u64),
 ) -> bool {
     let direct = matches!(kind, ShotKind::Direct { .. });
@@ -197,6 +197,13 @@ pub(super) fn shoot(
             })),
         "no root of a pass receives from another"
     );
+    if !direct {
+        // A direct shot's emission is shot once: its verdicts would not be read again.
+        for &s in shooters {
+            far_verdicts.reserve(s);
+        }
+    }
+    let far_verdicts = &*far_verdicts;
     let taken: Vec<Shooter> = shooters
         .iter()
         .map(|&s| Shooter::take(ctx, s, direct, &mut hierarchies[s], unshot[s]))
@@ -324,7 +331,12 @@ pub(super) fn shoot(
                             }
                             took_light[i] |= receive_one(
                                 ctx,
-                                (&shots[j], t, far_sources[j].as_ref()),
+                                (
+                                    &shots[j],
+                                    t,
+                                    far_sources[j].as_ref(),
+                                    far_verdicts.table(t.index),
+                                ),
                                 power_bounds[j],
                                 received,
                                 ri,
@@ -381,12 +393,18 @@ pub(super) fn shoot(
 const PASS_CHUNK: usize = 32;
 
 /// Receiver root `ri` (tree `h`) takes one shooter's light: as one far link when its whole share
-/// is within the threshold (`far_field.rs`, `power_bound` the shooter's bound), else refined
+/// is within the threshold (`far_field.rs`, `power_bound` the shooter's bound; its ray's verdict
+/// read from the shooter's table when an earlier shot traced it, `far_verdicts.rs`), else refined
 /// link by link (and judged on its nodes' sums); `received` is the plan's estimate of its share
 /// with no occluder. Whether it took light without a push-pull pending (a far link's constant).
 fn receive_one(
     ctx: &ShotContext,
-    (shot, shooter, far_source): (&ElementShot, &Shooter, Option<&ElementSource>),
+    (shot, shooter, far_source, verdicts): (
+        &ElementShot,
+        &Shooter,
+        Option<&ElementSource>,
+        Option<&VerdictTable>,
+    ),
     power_bound: f64,
     received: f64,
     ri: usize,
@@ -396,8 +414,9 @@ fn receive_one(
     let roots = ctx.roots;
     let (s, r) = (&ctx.spheres[shooter.index], &ctx.spheres[ri]);
     if power_bound * far_field::transfer_fraction_bound(s, r) <= ctx.threshold {
+        let verdict = verdicts.map(|v| (v, ri));
         let e = far_source
-            .and_then(|fs| far_field::far_irradiance(fs, &roots[ri], ctx.link_points[ri]));
+            .and_then(|fs| far_field::far_irradiance(fs, &roots[ri], ctx.link_points[ri], verdict));
         return e.is_some_and(|e| ctx.accept_far(h, &roots[ri], e, direct));
     }
     let mut record = ShotRecord::default();

@@ -12,6 +12,7 @@ use super::cover::face_integral;
 use super::element::Sphere;
 use super::eta::{ShotKind, ShotPlan};
 use super::far_field;
+use super::far_verdicts::FarVerdicts;
 use super::forecast_inputs::foresee_indirect;
 use super::hierarchy::Hierarchy;
 use super::lights;
@@ -141,6 +142,7 @@ pub fn solve(
         emitted_total
     };
     let mut stop = StopReason::Converged;
+    let mut far_verdicts = FarVerdicts::new(roots.len(), params.far_verdict_bytes);
     // Shots of the last pass (the first row stands for the start).
     let mut pass_shots = 1;
     loop {
@@ -181,8 +183,7 @@ pub fn solve(
             (&shooters, kind),
             facing_eps,
             params.target_unshot,
-            &mut hierarchies,
-            &mut unshot,
+            (&mut hierarchies, &mut unshot, &mut far_verdicts),
             (&mut reporter, iterations),
         );
         if !completed {
@@ -209,6 +210,7 @@ pub fn solve(
             }
         }
     }
+    tracing::debug!(bytes = far_verdicts.bytes(), "far links' verdicts kept");
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {
         iterations,

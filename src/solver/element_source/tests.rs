@@ -64,7 +64,9 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
     // Off the centre's axis, so that the hole does not sit symmetrically under the point.
     let above = |z: f64| DVec3::new(0.8, 0.3, z);
     let ratio = |x: DVec3| {
-        let far = source.far_irradiance_at(x, down, ignore).expect("in front");
+        let far = source
+            .far_irradiance_at(x, down, ignore, None)
+            .expect("in front");
         let near = source
             .irradiance_at(x, down, ignore, Rays::Trace)
             .expect("in front")
