@@ -387,6 +387,28 @@ impl<'s> ElementSource<'s> {
         sum
     }
 
+    /// The rule's form factor at `x` (normal `n`, as [`ElementSource::rule_form_factor`]) and
+    /// the irradiance its emitting points deliver there all seen: the terms and the order of
+    /// [`ElementSource::with_verdicts`], whose result with every point seen and `f` this form
+    /// factor it is bit for bit (`tests::the_rule_sums_are_with_verdicts_all_seen`), in one pass
+    /// over the points.
+    fn rule_sums(&self, x: DVec3, n: DVec3) -> (f64, Rgb) {
+        let (mut f, mut e) = (0.0, [0.0; 3]);
+        for (l, ql) in self.rule.iter().enumerate() {
+            if self.alpha[l] <= 0.0 {
+                continue;
+            }
+            let kxy = self.point_term(l, ql.weight, x, n);
+            if kxy > 0.0 {
+                f += kxy;
+                for ch in 0..3 {
+                    e[ch] += kxy * self.radiosity[l][ch];
+                }
+            }
+        }
+        (f, e)
+    }
+
     /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from
     /// [`ElementSource::form_factor`]) given the verdicts `seen` of its emitting rule points, bit
     /// `i` for the `i`-th of them.
@@ -604,13 +626,16 @@ impl<'s> ElementSource<'s> {
         ignore: [u32; 2],
         verdict: Option<(&VerdictTable, usize)>,
     ) -> Option<Rgb> {
-        let f = if self
+        // Beyond the rule's radii, the rule's sums: its form factor and what it delivers seen
+        // whole (what `with_verdicts` gives with every point seen, its rescaling exactly 1).
+        let (f, rule_e) = if self
             .emitter
             .far_in_front(x, n, self.shot.rules.form_factor_radii)
         {
-            self.rule_form_factor(x, n)
+            let (f, e) = self.rule_sums(x, n);
+            (f, Some(e))
         } else {
-            self.form_factor(x, n)
+            (self.form_factor(x, n), None)
         };
         if f <= 0.0 {
             return None;
@@ -624,7 +649,7 @@ impl<'s> ElementSource<'s> {
             // What `with_verdicts` gives with no point seen.
             return Some([0.0; 3]);
         }
-        Some(self.with_verdicts(x, n, f, u64::MAX).e)
+        Some(rule_e.unwrap_or_else(|| self.with_verdicts(x, n, f, u64::MAX).e))
     }
 
     /// The verdicts of every rule point from `x` as one shadow ray to the source's centre

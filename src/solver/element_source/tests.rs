@@ -1,5 +1,5 @@
 //! `ElementSource` pinned against independent values: a far link's form factor on a partly
-//! covered source, and a source cut by the receiver's plane under an eave against a fine grid of
+//! covered source, a far link's one-pass rule sums against `with_verdicts`, and a source cut by the receiver's plane under an eave against a fine grid of
 //! the source with the eave decided exactly.
 
 use super::*;
@@ -91,6 +91,55 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
     // Nearer than the radii, the far link takes the rings' exact form factor too.
     let r = ratio(above(radii * radius * 0.9));
     assert!((r - 1.0).abs() < 1e-12, "{r}");
+}
+
+/// `rule_sums` is `rule_form_factor` and `with_verdicts` with every point seen, bit for bit: random
+/// radiosity (every basis function) on a holed, partly covered source and on a whole one, at
+/// random points and normals, in front of the source or not.
+#[test]
+fn the_rule_sums_are_with_verdicts_all_seen() {
+    let order = 2;
+    let (bases, rules) = (Bases::new(order), Rules::new(order));
+    let basis = Basis::new(Shape::Parallelogram, order);
+    let n = basis.len();
+    let mut rnd = crate::shuffle::uniform_sequence(5);
+    let visibility = Visibility::new(Vec::new(), 30.0);
+    let hierarchy = Hierarchy::new(n);
+    let mut checked = 0;
+    for holed in [false, true] {
+        let mut root = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
+        let cover = holed.then(|| {
+            let mask = crate::solver::cover::tests::holed(0.5);
+            let c = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
+            root.mask = Some(mask);
+            root.face_area_m2 = 0.75;
+            c
+        });
+        let roots = [root];
+        for _ in 0..200 {
+            let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
+            for c in coeffs.iter_mut().take(n) {
+                *c = [rnd() - 0.3, rnd(), 2.0 * rnd() - 1.0];
+            }
+            let element = SourceElement::root(&roots[0], coeffs, n, cover, None);
+            let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, false);
+            let Some(source) = shot.source(&element, [1.0; 3]) else {
+                continue;
+            };
+            let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+            let x = DVec3::new(0.5, 0.5, 0.0) + v() * 20.0;
+            let normal = v().normalize();
+            let (f, e) = source.rule_sums(x, normal);
+            assert_eq!(f, source.rule_form_factor(x, normal));
+            if f > 0.0 {
+                assert_eq!(e, source.with_verdicts(x, normal, f, u64::MAX).e);
+                checked += 1;
+            } else {
+                assert_eq!(e, [0.0; 3]);
+            }
+        }
+    }
+    assert!(checked > 100, "{checked} points received light");
 }
 
 /// The eave of the two tests below: the plane y = 0 from x = -0.3 (over the building) to 0.05
