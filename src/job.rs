@@ -11,7 +11,9 @@ use crate::output::solution_file::{self, SolutionFileError};
 use crate::output::{write_outputs, AtlasSettings, OutputOptions};
 use crate::pipeline::{bake, prepare};
 use crate::scene::{Scene, SceneError};
-use crate::solver::{Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE};
+use crate::solver::{
+    Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE, FAR_VERDICT_BYTES,
+};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
@@ -154,11 +156,16 @@ const BYTES_PER_NODE: u64 = 64;
 
 /// A rough upper estimate of a solve's memory (bytes): per triangle, its share of scene, faces
 /// and visibility structure, plus `ELEMENTS_PER_TRIANGLE` elements each holding four coefficient
-/// arrays (irradiance, direct, unshot, gathered) of `order^2` functions in three channels of f64.
+/// arrays (irradiance, direct, unshot, gathered) of `order^2` functions in three channels of f64;
+/// and the far links' verdicts (two bits per pair of roots, at most two roots per triangle,
+/// within [`FAR_VERDICT_BYTES`]).
 pub fn estimated_memory_bytes(triangles: usize, order: usize) -> u64 {
     let functions = (order * order) as u64;
     let element = functions * 4 * 3 * 8 + BYTES_PER_NODE;
-    (triangles as u64).saturating_mul(BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * element)
+    let t = triangles as u64;
+    let verdicts = t.saturating_mul(t).min(FAR_VERDICT_BYTES as u64);
+    t.saturating_mul(BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * element)
+        .saturating_add(verdicts)
 }
 
 /// Why a job failed.
@@ -291,4 +298,28 @@ pub fn run_job_keeping_solution(
             mode: params.domain_mode(),
         }),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The estimate counts the far links' verdicts: two bits per pair of at most two roots per
+    /// triangle, never more than their budget.
+    #[test]
+    fn the_memory_estimate_counts_the_far_links_verdicts() {
+        let per_triangle = |order: usize| {
+            BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * (order * order * 96 + 64) as u64
+        };
+        assert_eq!(
+            estimated_memory_bytes(100, 2),
+            100 * per_triangle(2) + 10_000
+        );
+        let level = 70_754;
+        assert_eq!(
+            estimated_memory_bytes(level, 3),
+            level as u64 * per_triangle(3) + FAR_VERDICT_BYTES as u64
+        );
+        assert_eq!(estimated_memory_bytes(usize::MAX, 2), u64::MAX);
+    }
 }

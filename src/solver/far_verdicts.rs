@@ -8,7 +8,8 @@
 //! keeps them; a later shot reads the verdict instead of tracing it.
 //!
 //! Invariants: a verdict read is the one the ray would give (the solve is the same with or
-//! without the tables: `tests::verdicts_change_no_light_and_save_the_rays`); the tables never
+//! without the tables: `tests/solver.rs`
+//! `far_link_verdicts_kept_between_shots_change_no_light_and_save_rays`); the tables never
 //! take more than the budget (`SolverParams::far_verdict_bytes`): a shooter whose table does not
 //! fit traces its far links as before. Receivers write their bits concurrently (one atomic
 //! `fetch_or` per new verdict; a verdict is never changed once written).

@@ -9,7 +9,8 @@
 //! unshot power shoots, in a pass with roots of at least half its power that face none of the
 //! pass's others, until `unshot_ratio = unshot power / direct power received <= target`. Links
 //! are not cached: each transfer is recomputed when its source shoots again (memory stays
-//! proportional to elements). Receivers of one pass are processed in parallel (rayon); the
+//! proportional to elements); only a far link's shadow-ray verdict is kept per pair of roots,
+//! two bits each, within a fixed budget (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]). Receivers of one pass are processed in parallel (rayon); the
 //! shooters are read-only during it, and refined only virtually (sub-elements computed by push,
 //! not stored).
 
@@ -75,8 +76,9 @@ pub const DETAIL_REL: f64 = 0.01;
 /// How much lower than the tolerance's threshold the detail of direct light may be refined to.
 pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
 /// What the far links' shadow-ray verdicts may take by default (`far_verdicts.rs`): two bits per
-/// pair of shooter and receiver roots, so a level of 40 000 roots keeps the tables of 25 000
-/// shooters; beyond it a shooter traces its far links every shot.
+/// pair of shooter and receiver roots, so a level of 40 000 roots keeps the tables of some 26 000
+/// shooters; beyond it a shooter traces its far links every shot. Counted in
+/// `job::estimated_memory_bytes`.
 pub const FAR_VERDICT_BYTES: usize = 256 << 20;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;

@@ -198,7 +198,10 @@ pub(super) fn shoot(
         "no root of a pass receives from another"
     );
     if !direct {
-        // A direct shot's emission is shot once: its verdicts would not be read again.
+        // Only indirect passes keep their far links' verdicts: an emitter's direct shot comes
+        // before them all, and the emitter that dominates a level, a sky panel, reflects nothing
+        // and never shoots again (an emitter that reflects keeps its table from its first
+        // indirect pass on).
         for &s in shooters {
             far_verdicts.reserve(s);
         }

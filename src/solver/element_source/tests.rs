@@ -1,6 +1,7 @@
 //! `ElementSource` pinned against independent values: a far link's form factor on a partly
-//! covered source, a far link's one-pass rule sums against `with_verdicts`, and a source cut by the receiver's plane under an eave against a fine grid of
-//! the source with the eave decided exactly.
+//! covered source, a far link's one-pass rule sums against `with_verdicts`, and a source cut by
+//! the receiver's plane under an eave against a fine grid of the source with the eave decided
+//! exactly.
 
 use super::*;
 use crate::domain::Shape;
