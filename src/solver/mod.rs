@@ -10,9 +10,9 @@
 //! pass's others, until `unshot_ratio = unshot power / direct power received <= target`. Links
 //! are not cached: each transfer is recomputed when its source shoots again (memory stays
 //! proportional to elements); only a far link's shadow-ray verdict is kept per pair of roots,
-//! two bits each, within a fixed budget (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]). Receivers of one pass are processed in parallel (rayon); the
-//! shooters are read-only during it, and refined only virtually (sub-elements computed by push,
-//! not stored).
+//! two bits each, within a fixed budget (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]). Receivers
+//! of one pass are processed in parallel (rayon); the shooters are read-only during it, and
+//! refined only virtually (sub-elements computed by push, not stored).
 
 pub(crate) mod basis;
 pub(crate) mod cover;
