@@ -8,7 +8,8 @@
 //! partly covered element too), and the reciprocity check. Where a receiver point's tangent
 //! plane cuts a native or wholly covered element behind some of its rule points, the rule is
 //! carried onto the part in front ([`FrontMap`]), so the rays sample what the form factor
-//! counts (on every path but a far link's one ray).
+//! counts (on every path but a far link's one ray). The one-ray path, a far link's and the
+//! centre ray's: `far_link.rs`.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -18,7 +19,6 @@ use super::cover::NodeCover;
 use super::element::{
     partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, Patch,
 };
-use super::far_verdicts::VerdictTable;
 use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
 use super::kernel;
@@ -312,20 +312,6 @@ impl<'s> ElementSource<'s> {
         }
     }
 
-    /// The emitting rule points' weighted mean, on the face: the mean itself when the face
-    /// covers it, else its closest point on the face (off an L-shaped face or in a hole, the
-    /// mean would send a far link's ray to a point that may lie inside another object).
-    fn centre_stand_in(&self) -> DVec3 {
-        let st = self
-            .rule
-            .iter()
-            .zip(&self.alpha)
-            .map(|(q, &a)| q.st * (q.weight * a))
-            .sum::<DVec2>()
-            / self.alpha_weight;
-        visibility_point(self.root, &self.src.map, st)
-    }
-
     /// A bound on the power the element may send (channels summed and weighted as the oracle's
     /// errors): at any point its radiosity's magnitude is at most its mean's plus
     /// `amplitude_bound`. On a partly covered element each point's value is the polynomial's there
@@ -385,28 +371,6 @@ impl<'s> ElementSource<'s> {
             }
         }
         sum
-    }
-
-    /// The rule's form factor at `x` (normal `n`, as [`ElementSource::rule_form_factor`]) and
-    /// the irradiance its emitting points deliver there all seen: the terms and the order of
-    /// [`ElementSource::with_verdicts`], whose result with every point seen and `f` this form
-    /// factor it is bit for bit (`tests::the_rule_sums_are_with_verdicts_all_seen`), in one pass
-    /// over the points.
-    fn rule_sums(&self, x: DVec3, n: DVec3) -> (f64, Rgb) {
-        let (mut f, mut e) = (0.0, [0.0; 3]);
-        for (l, ql) in self.rule.iter().enumerate() {
-            if self.alpha[l] <= 0.0 {
-                continue;
-            }
-            let kxy = self.point_term(l, ql.weight, x, n);
-            if kxy > 0.0 {
-                f += kxy;
-                for ch in 0..3 {
-                    e[ch] += kxy * self.radiosity[l][ch];
-                }
-            }
-        }
-        (f, e)
     }
 
     /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from
@@ -609,64 +573,6 @@ impl<'s> ElementSource<'s> {
         out.e = e.map(|c| c * f / fq);
         Some(out)
     }
-
-    /// The irradiance of a far link at `x` (normal `n`): [`Source::irradiance_at`] with one
-    /// shadow ray, to the source's centre, standing for every rule point's (0 when it is
-    /// blocked), and beyond the rule's radii ([`Emitter::far_in_front`]) the rule's sum for the
-    /// form factor even on a partly covered element (its coverage-weighted rule is a few percent
-    /// off the face's exact form factor there). A far link's whole transfer is within the
-    /// oracle's threshold (`far_field.rs`), the budget any other estimate of it would be
-    /// allowed. `None` when `x` is behind the source or the source's plane. `verdict`: the
-    /// shooter's table of far links' verdicts and the receiver's index in it, which keeps the
-    /// ray's verdict for the pair (`far_verdicts.rs`).
-    pub(super) fn far_irradiance_at(
-        &self,
-        x: DVec3,
-        n: DVec3,
-        ignore: [u32; 2],
-        verdict: Option<(&VerdictTable, usize)>,
-    ) -> Option<Rgb> {
-        // Beyond the rule's radii, the rule's sums: its form factor and what it delivers seen
-        // whole (what `with_verdicts` gives with every point seen, its rescaling exactly 1).
-        let (f, rule_e) = if self
-            .emitter
-            .far_in_front(x, n, self.shot.rules.form_factor_radii)
-        {
-            let (f, e) = self.rule_sums(x, n);
-            (f, Some(e))
-        } else {
-            (self.form_factor(x, n), None)
-        };
-        if f <= 0.0 {
-            return None;
-        }
-        let trace = || self.centre_verdict(x, ignore) != 0;
-        let seen = match verdict {
-            Some((table, r)) => table.visible(r, trace),
-            None => trace(),
-        };
-        if !seen {
-            // What `with_verdicts` gives with no point seen.
-            return Some([0.0; 3]);
-        }
-        Some(rule_e.unwrap_or_else(|| self.with_verdicts(x, n, f, u64::MAX).e))
-    }
-
-    /// The verdicts of every rule point from `x` as one shadow ray to the source's centre
-    /// decides them: all seen (`u64::MAX`) or none (0, without a ray when no rule point emits).
-    fn centre_verdict(&self, x: DVec3, ignore: [u32; 2]) -> u64 {
-        if self.alpha_weight <= 0.0 {
-            return 0;
-        }
-        let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
-        let visibility = self.shot.visibility;
-        visibility.count_rays(1);
-        if visibility.visible_from(x, &[centre], ignore) & 1 == 1 {
-            u64::MAX
-        } else {
-            0
-        }
-    }
 }
 
 impl Source for ElementSource<'_> {
@@ -810,6 +716,8 @@ struct FrontRule {
     radiosity: [Rgb; POINTS],
     len: usize,
 }
+
+mod far_link;
 
 #[cfg(test)]
 pub(super) mod tests;
