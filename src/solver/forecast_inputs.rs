@@ -164,8 +164,9 @@ pub(super) fn foresee_indirect(
     forecast(
         &input,
         &|s, r| {
-            faces(s, r)
-                .then(|| unoccluded_received(ctx, s, 1.0, r) * mean_rgb_sum(roots[r].rho) / 3.0)
+            faces(s, r).then(|| {
+                unoccluded_received(ctx, s, 1.0, r, false) * mean_rgb_sum(roots[r].rho) / 3.0
+            })
         },
         &faces,
     )

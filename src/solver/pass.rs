@@ -237,7 +237,8 @@ pub(super) fn shoot(
                 let (sroot, ssphere) = (&roots[t.index], &ctx.spheres[t.index]);
                 let (root, sphere) = (&roots[ri], &ctx.spheres[ri]);
                 if ri != t.index && faces_each_other(sroot, ssphere, root, sphere, facing_eps) {
-                    p[j] = unoccluded_received(ctx, t.index, t.power, ri);
+                    let far = takes_far_link(power_bounds[j], ssphere, sphere, ctx.threshold);
+                    p[j] = unoccluded_received(ctx, t.index, t.power, ri, far);
                 }
             }
             p
@@ -416,7 +417,7 @@ fn receive_one(
 ) -> bool {
     let roots = ctx.roots;
     let (s, r) = (&ctx.spheres[shooter.index], &ctx.spheres[ri]);
-    if power_bound * far_field::transfer_fraction_bound(s, r) <= ctx.threshold {
+    if takes_far_link(power_bound, s, r, ctx.threshold) {
         let verdict = verdicts.map(|v| (v, ri));
         let e = far_source
             .and_then(|fs| far_field::far_irradiance(fs, &roots[ri], ctx.link_points[ri], verdict));
@@ -433,6 +434,13 @@ fn receive_one(
         ctx.refine_by_node_sums(shot, record, ri, h);
     }
     false
+}
+
+/// Whether a receiver (bounding sphere `receiver`) takes a shot as one far link: the most the
+/// shooter (`shooter`, sending at most `power_bound`) can send it is within the oracle's
+/// `threshold` (`far_field.rs`). The plan estimates such a receiver at its centre alone.
+fn takes_far_link(power_bound: f64, shooter: &Sphere, receiver: &Sphere, threshold: f64) -> bool {
+    power_bound * far_field::transfer_fraction_bound(shooter, receiver) <= threshold
 }
 
 /// The largest share of the oracle's threshold a near receiver may get from an indirect shot, with
