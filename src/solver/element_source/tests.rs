@@ -29,6 +29,18 @@ pub(in crate::solver) fn shot_of_first_root<'a>(
     }
 }
 
+/// The unit square in the plane z = 0 with a centred hole of half its side (face area 0.75),
+/// shooting as one partly covered element: the root and its element's cover.
+fn holed_unit_square(rules: &Rules, basis: &Basis) -> (ElementRoot, NodeCover) {
+    let mut root = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
+    let mask = crate::solver::cover::tests::holed(0.5);
+    let cover = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, basis, true);
+    assert_eq!(cover.status, ElementStatus::Partial);
+    root.mask = Some(mask);
+    root.face_area_m2 = 0.75;
+    (root, cover)
+}
+
 /// A far link on a partly covered source (a unit square with a centred hole of half its side,
 /// shooting as one element with its face's rings) takes the rule's sum for the form factor
 /// beyond the rule's radii, where a near link takes the exact contour integral of the rings:
@@ -40,12 +52,7 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
     let (bases, rules) = (Bases::new(order), Rules::new(order));
     let basis = Basis::new(Shape::Parallelogram, order);
     let n = basis.len();
-    let mut source = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
-    let mask = crate::solver::cover::tests::holed(0.5);
-    let cover = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
-    assert_eq!(cover.status, ElementStatus::Partial);
-    source.mask = Some(mask);
-    source.face_area_m2 = 0.75;
+    let (mut source, cover) = holed_unit_square(&rules, &basis);
     source.exitance = [1.0; 3];
     let roots = [source];
     let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
@@ -108,14 +115,12 @@ fn the_rule_sums_are_with_verdicts_all_seen() {
     let hierarchy = Hierarchy::new(n);
     let mut checked = 0;
     for holed in [false, true] {
-        let mut root = parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y);
-        let cover = holed.then(|| {
-            let mask = crate::solver::cover::tests::holed(0.5);
-            let c = NodeCover::new(&mask, &ChildMap::IDENTITY, &rules.cover, &basis, true);
-            root.mask = Some(mask);
-            root.face_area_m2 = 0.75;
-            c
-        });
+        let (root, cover) = if holed {
+            let (root, cover) = holed_unit_square(&rules, &basis);
+            (root, Some(cover))
+        } else {
+            (parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y), None)
+        };
         let roots = [root];
         for _ in 0..200 {
             let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
