@@ -40,9 +40,11 @@ const MAX_FACING_RECEIVERS: usize = 1024;
 /// and [`RAYS_PER_POWER`] times the square root of its power over the threshold (the links
 /// refined near it; docs/performance-notes.md, "What a shot costs against the power it sends").
 /// Both fitted on the scaling benchmark's six scenes (the same notes, "The indirect phase priced
-/// along a foreseen cost curve"): the ETA corrects the level as the indirect shots come, the
-/// curve's shape is what it relies on.
-const RAYS_PER_RECEIVER: f64 = 6.0;
+/// along a foreseen cost curve"; the price per receiver lowered since, as far links' verdicts
+/// were kept and the plan estimated their receivers at one point: "The ETA's price per receiver
+/// after the far links got cheaper"): the ETA corrects the level as the indirect shots come,
+/// the curve's shape is what it relies on.
+const RAYS_PER_RECEIVER: f64 = 3.0;
 const RAYS_PER_POWER: f64 = 5000.0;
 /// Nats between the points of the cost curve, at least.
 const CURVE_STEP: f64 = 0.01;
