@@ -39,11 +39,11 @@ const MAX_FACING_RECEIVERS: usize = 1024;
 /// traced): [`RAYS_PER_RECEIVER`] per receiver the shooter faces (its plan, its far links),
 /// and [`RAYS_PER_POWER`] times the square root of its power over the threshold (the links
 /// refined near it; docs/performance-notes.md, "What a shot costs against the power it sends").
-/// Both fitted on the scaling benchmark's six scenes (the same notes, "The indirect phase priced
-/// along a foreseen cost curve"; the price per receiver lowered since, as far links' verdicts
-/// were kept and the plan estimated their receivers at one point: "The ETA's price per receiver
-/// after the far links got cheaper"): the ETA corrects the level as the indirect shots come,
-/// the curve's shape is what it relies on.
+/// Chosen on the scaling benchmark's scenes, so that the ETA stays within 2 of the time left on
+/// each (the same notes, "The indirect phase priced along a foreseen cost curve" and "The
+/// ETA's price per receiver after the far links got cheaper"; a change in what a far link
+/// costs moves them): the ETA corrects the level as the indirect shots come, the curve's shape
+/// is what it relies on.
 const RAYS_PER_RECEIVER: f64 = 3.0;
 const RAYS_PER_POWER: f64 = 5000.0;
 /// Nats between the points of the cost curve, at least.

@@ -18,11 +18,11 @@ use glam::DVec3;
 /// takes the point estimate at its centre (`far_field::point_form_factor`); a near one the form
 /// factor averaged over its centre and corners (one of them may see the shooter when the centre
 /// does not), or at its centre alone when it takes the shot as one far link (`far_link`: the
-/// most it can receive is within the oracle's threshold, and so is what a disc of its area at
-/// its centre would, so the estimate errs by at most that much; on a level's late shots most
-/// receivers are such, and the five points were most of the plan's cost). A cost and
-/// reflection estimate for the ETA, not a transfer: it runs for every receiver of every shot,
-/// so it allocates only where the contour integral clips.
+/// most it can receive is within the oracle's threshold, and where the two bounding spheres
+/// are apart so is the centre's estimate, every point of the shooter lying at least as far from
+/// it as from the receiver's sphere). A cost and reflection estimate for the ETA, not a
+/// transfer: it runs for every receiver of every shot, so it allocates only where the contour
+/// integral clips.
 pub(super) fn unoccluded_received(
     ctx: &ShotContext,
     shooter: usize,
