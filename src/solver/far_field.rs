@@ -306,7 +306,8 @@ pub(super) mod tests {
     }
 
     /// With the shooter's table of verdicts (`far_verdicts.rs`), a far link traces its ray the
-    /// first time only: the second takes the same light, blocked or not, with no ray.
+    /// first time only: the second takes the same light, blocked or not, with no ray; a pair
+    /// known blocked takes nothing without evaluating its form factor.
     #[test]
     fn a_far_link_reads_its_verdict_back_from_the_shooters_table() {
         use crate::solver::far_verdicts::FarVerdicts;
@@ -327,6 +328,14 @@ pub(super) mod tests {
                 assert_eq!(rays, [1, 0], "blocked {blocked}");
                 assert_eq!(far, [untabled, untabled], "blocked {blocked}");
                 assert_eq!(untabled.is_some_and(|e| e[0] > 0.0), !blocked);
+                // A pair known blocked is answered before its form factor is evaluated: asked
+                // at a point behind the source's plane (`None`: its form factor is 0), the
+                // table's verdict stands. In a solve the point is the pair's own, whose form
+                // factor was positive when its ray was traced.
+                let behind = DVec3::new(0.5, 0.5, -5.0);
+                assert_eq!(far_irradiance(source, receiver, behind, None), None);
+                let known = far_irradiance(source, receiver, behind, Some((table, 1)));
+                assert_eq!(known, blocked.then_some([0.0; 3]), "blocked {blocked}");
             });
         }
     }

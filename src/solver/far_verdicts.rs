@@ -5,7 +5,9 @@
 //! pair of roots alone, whatever the shooter's radiosity. A root shoots again and again as light
 //! comes back to it, and most receivers of its shots are far ones, so the same rays were traced
 //! shot after shot. Per shooter root, a table of two bits per receiver root (known, visible)
-//! keeps them; a later shot reads the verdict instead of tracing it.
+//! keeps them; a later shot reads the verdict instead of tracing it, and a pair known blocked
+//! skips the link's form factor as well (the verdict is written only where it was positive, and
+//! it depends on the pair alone).
 //!
 //! Invariants: a verdict read is the one the ray would give (the solve is the same with or
 //! without the tables: `tests/solver.rs`
@@ -35,6 +37,13 @@ impl VerdictTable {
 
     fn bytes(receivers: usize) -> usize {
         receivers.div_ceil(PER_WORD) * std::mem::size_of::<AtomicU64>()
+    }
+
+    /// Receiver `r`'s verdict if a shot traced it: `Some(false)` blocked, `Some(true)` visible.
+    pub fn known(&self, r: usize) -> Option<bool> {
+        let (word, shift) = (&self.words[r / PER_WORD], 2 * (r % PER_WORD));
+        let bits = word.load(Ordering::Relaxed) >> shift & 0b11;
+        (bits & 1 == 1).then_some(bits == 0b11)
     }
 
     /// Whether receiver `r` sees the shooter, traced by `trace` the first time it is asked.
@@ -108,10 +117,12 @@ mod tests {
             seen
         };
         for r in 0..70 {
+            assert_eq!(t.known(r), None);
             assert_eq!(t.visible(r, || trace(r % 3 == 0)), r % 3 == 0);
         }
         assert_eq!(traced.get(), 70);
         for r in 0..70 {
+            assert_eq!(t.known(r), Some(r % 3 == 0));
             assert_eq!(t.visible(r, || trace(r % 3 != 0)), r % 3 == 0);
         }
         assert_eq!(traced.get(), 70, "no second ray for a known pair");

@@ -39,6 +39,7 @@ mod shooting;
 mod shot_record;
 mod solution;
 mod source;
+mod striped_count;
 mod transfer;
 mod unoccluded;
 pub(crate) mod visibility;

@@ -112,7 +112,7 @@ impl ShotContext<'_> {
             };
             self.node_sum_splits.fetch_add(1, Ordering::Relaxed);
             // Taken back: no longer links of this node (each is counted again where it lands).
-            self.links.fetch_sub(resend.len() as u64, Ordering::Relaxed);
+            self.links.sub(resend.len() as u64);
             for dh in resend.coefficients() {
                 debug_assert_eq!(dh.len(), nr);
                 take_back(rcv, b, dh);

@@ -20,7 +20,7 @@ use super::far_field;
 use super::far_verdicts::{FarVerdicts, VerdictTable};
 use super::forecast_inputs::foresee_after_direct_shot;
 use super::hierarchy::Hierarchy;
-use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
+use super::progress::{with_reports, CostUnits, Reporter, ShotCounter, ShotCounts};
 use super::refine::{Shot, ShotContext};
 use super::shot_record::ShotRecord;
 use super::source::Rays;
@@ -276,10 +276,7 @@ pub(super) fn shoot(
     // `RUST_LOG=wavrad::solver::pass=trace` (docs/performance-notes.md, "What a shot costs
     // against the power it sends").
     let cost_before = tracing::enabled!(tracing::Level::TRACE).then(|| {
-        let (rays, links) = (
-            ctx.visibility.rays_traced(),
-            ctx.links.load(Ordering::Relaxed),
-        );
+        let (rays, links) = (ctx.visibility.rays_traced(), ctx.links.get());
         (Instant::now(), rays, links)
     });
     let power = taken.iter().map(|t| t.power).sum();
@@ -349,6 +346,7 @@ pub(super) fn shoot(
                             );
                         }
                     }
+                    let mut finished = ShotCounts::default();
                     for (i, (h, power)) in hs.iter_mut().zip(powers.iter_mut()).enumerate() {
                         let ri = first + i;
                         if !visited(ri) {
@@ -362,12 +360,12 @@ pub(super) fn shoot(
                         if took_light[i] {
                             *power = unshot_power(h, &roots[ri]);
                         }
-                        done.finished(
-                            units.of(weights(ri)),
-                            returns_units.of(expected(ri)),
-                            returns_units.of(*power - before),
-                        );
+                        finished.receivers += 1;
+                        finished.units += units.of(weights(ri));
+                        finished.expected += returns_units.of(expected(ri));
+                        finished.returned += returns_units.of(*power - before);
                     }
+                    done.add(finished);
                 },
             )
     };
@@ -382,7 +380,7 @@ pub(super) fn shoot(
             receivers,
             seconds = start.elapsed().as_secs_f64(),
             rays = ctx.visibility.rays_traced() - rays,
-            links = ctx.links.load(Ordering::Relaxed) - links,
+            links = ctx.links.get() - links,
             "shot cost"
         );
     }

@@ -11,6 +11,7 @@
 
 use super::eta::{EtaEstimator, ShotPlan};
 use super::indirect_forecast::IndirectForecast;
+use super::striped_count::StripedCount;
 use super::visibility::Visibility;
 use super::{Progress, SolverParams, REPORT_INTERVAL};
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -44,10 +45,21 @@ pub(super) struct ShotCounts {
 impl ShotCounter {
     /// One receiver is done: `units` of the cost, `expected` and `returned` units of returns.
     pub(super) fn finished(&self, units: u64, expected: u64, returned: u64) {
-        self.receivers.fetch_add(1, Ordering::Relaxed);
-        self.units.fetch_add(units, Ordering::Relaxed);
-        self.expected.fetch_add(expected, Ordering::Relaxed);
-        self.returned.fetch_add(returned, Ordering::Relaxed);
+        self.add(ShotCounts {
+            receivers: 1,
+            units,
+            expected,
+            returned,
+        });
+    }
+
+    /// Receivers done together (a loop's piece adds its receivers once: the counter is one
+    /// cache line every thread writes).
+    pub(super) fn add(&self, done: ShotCounts) {
+        self.receivers.fetch_add(done.receivers, Ordering::Relaxed);
+        self.units.fetch_add(done.units, Ordering::Relaxed);
+        self.expected.fetch_add(done.expected, Ordering::Relaxed);
+        self.returned.fetch_add(done.returned, Ordering::Relaxed);
     }
 
     fn load(&self) -> ShotCounts {
@@ -153,7 +165,7 @@ where
 pub(super) struct Reporter<'a> {
     start: Instant,
     observe: &'a mut dyn FnMut(&Progress),
-    links: &'a AtomicU64,
+    links: &'a StripedCount,
     /// Counts the rays traced (the ETA's measure of the machine's speed).
     visibility: &'a Visibility,
     eta: EtaEstimator,
@@ -167,7 +179,7 @@ impl<'a> Reporter<'a> {
     pub(super) fn new(
         start: Instant,
         observe: &'a mut dyn FnMut(&Progress),
-        links: &'a AtomicU64,
+        links: &'a StripedCount,
         visibility: &'a Visibility,
         params: &SolverParams,
         roots: usize,
@@ -237,7 +249,7 @@ impl<'a> Reporter<'a> {
                 .receivers_done(counts.receivers as f64 / receivers as f64);
         }
         let progress = Progress {
-            links: self.links.load(Ordering::Relaxed),
+            links: self.links.get(),
             seconds,
             shot_receivers_done: counts.receivers,
             shot_receivers: receivers,
@@ -269,7 +281,7 @@ impl<'a> Reporter<'a> {
             iterations,
             unshot_ratio: ratio,
             elements,
-            links: self.links.load(Ordering::Relaxed),
+            links: self.links.get(),
             seconds,
             shot_receivers_done: 0,
             shot_receivers: 0,

@@ -15,6 +15,7 @@ use super::oracle::{self, oracle_weight, Verdict};
 use super::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord, SourcePath};
 use super::source::{Rays, ReceiverNode, Source};
+use super::striped_count::StripedCount;
 use super::transfer::{self, Received};
 use super::visibility::Visibility;
 use super::Quantity;
@@ -66,7 +67,7 @@ pub(super) struct ShotContext<'a> {
     pub detail_threshold: f64,
     pub min_edge: f64,
     pub quantity: Quantity,
-    pub links: &'a AtomicU64,
+    pub links: &'a StripedCount,
     pub capped: &'a AtomicU64,
     pub touching: &'a AtomicU64,
     pub node_sum_splits: &'a AtomicU64,
@@ -307,7 +308,7 @@ impl ShotContext<'_> {
         record: &mut ShotRecord<P>,
     ) {
         let nr = rcv.len;
-        self.links.fetch_add(1, Ordering::Relaxed);
+        self.links.add(1);
         gather(rcv, b, &received.dh[..nr]);
         if self.node_sums {
             let e = &received.e[..received.points];
@@ -328,7 +329,7 @@ impl ShotContext<'_> {
         e: Rgb,
         direct: bool,
     ) -> bool {
-        self.links.fetch_add(1, Ordering::Relaxed);
+        self.links.add(1);
         if e == [0.0; 3] {
             return false;
         }

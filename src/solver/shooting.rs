@@ -22,6 +22,7 @@ use super::refine::ShotContext;
 use super::rules::{Bases, BasisAtControlPoints, Rules};
 use super::shot_record::{LinkBytes, ShotRecord};
 use super::source::{LightShot, Rays};
+use super::striped_count::StripedCount;
 use super::visibility::Visibility;
 use super::{mean_rgb_sum, Progress, Solution, SolveStats, SolverParams, StopReason, MIN_EDGE_REL};
 use crate::domain::ElementRoot;
@@ -35,7 +36,7 @@ use std::time::Instant;
 /// Counters shared by every shot.
 #[derive(Default)]
 struct Counters {
-    links: AtomicU64,
+    links: StripedCount,
     capped: AtomicU64,
     touching: AtomicU64,
     node_sum_splits: AtomicU64,
@@ -214,7 +215,7 @@ pub fn solve(
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {
         iterations,
-        links: counters.links.load(Ordering::Relaxed),
+        links: counters.links.get(),
         elements: last.elements,
         rays: visibility.rays_traced(),
         seconds: start.elapsed().as_secs_f64(),

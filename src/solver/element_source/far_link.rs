@@ -24,7 +24,9 @@ impl ElementSource<'_> {
     /// oracle's threshold (`far_field.rs`), the budget any other estimate of it would be
     /// allowed. `None` when `x` is behind the source or the source's plane. `verdict`: the
     /// shooter's table of far links' verdicts and the receiver's index in it, which keeps the
-    /// ray's verdict for the pair (`far_verdicts.rs`).
+    /// ray's verdict for the pair (`far_verdicts.rs`); a pair it knows blocked gets nothing at
+    /// once, its form factor not evaluated (it was positive when the ray was traced, and
+    /// depends on the pair alone: `a_far_link_reads_its_verdict_back_from_the_shooters_table`).
     ///
     /// [`Source::irradiance_at`]: super::Source::irradiance_at
     /// [`Emitter::far_in_front`]: super::Emitter::far_in_front
@@ -35,6 +37,11 @@ impl ElementSource<'_> {
         ignore: [u32; 2],
         verdict: Option<(&VerdictTable, usize)>,
     ) -> Option<Rgb> {
+        // A pair known blocked: an earlier shot traced it, having found the form factor
+        // positive (it depends on the pair alone), and nothing reaches the receiver.
+        if verdict.is_some_and(|(table, r)| table.known(r) == Some(false)) {
+            return Some([0.0; 3]);
+        }
         // Beyond the rule's radii, the rule's sums: its form factor and what it delivers seen
         // whole (what `with_verdicts` gives with every point seen, its rescaling exactly 1).
         let (f, rule_e) = if self

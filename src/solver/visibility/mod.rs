@@ -32,11 +32,11 @@ mod node_test;
 
 pub use bounding_planes::bounding_planes;
 
+use super::striped_count::StripedCount;
 use glam::{DVec3, UVec2, Vec3A};
 use node_test::{bundle_slots, node_hits, slot_hits_for};
 use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Hits closer than this fraction of the scene diagonal to a segment end are ignored.
 pub const ENDPOINT_EPSILON_REL: f64 = 1e-6;
@@ -75,7 +75,7 @@ pub struct Visibility {
     end_epsilon: f64,
     /// `BOX_PADDING_REL * diagonal`, the nearest exit of a box the node test keeps.
     box_padding: f32,
-    rays: AtomicU64,
+    rays: StripedCount,
     /// The CPU has x86-64-v3's features (AVX2, FMA, BMI, LZCNT, POPCNT): the segment tests run
     /// compiled for them (see the module header). Invariant: true only when
     /// `cpu_has_x86_64_v3()` is (the x86-64-v3 path runs AVX2 code).
@@ -137,7 +137,7 @@ impl Visibility {
             bvh,
             end_epsilon: ENDPOINT_EPSILON_REL * diagonal,
             box_padding: pad,
-            rays: AtomicU64::new(0),
+            rays: StripedCount::new(),
             x86_64_v3: cpu_has_x86_64_v3(),
         }
     }
@@ -164,7 +164,7 @@ impl Visibility {
 
     /// Number of segment tests done so far.
     pub fn rays_traced(&self) -> u64 {
-        self.rays.load(Ordering::Relaxed)
+        self.rays.get()
     }
 
     /// True when nothing but the faces in `ignore` blocks the open segment `p`-`q`; counted in
@@ -178,7 +178,7 @@ impl Visibility {
     /// [`Visibility::visible_from`] to the count.
     pub(crate) fn count_rays(&self, n: u64) {
         if n > 0 {
-            self.rays.fetch_add(n, Ordering::Relaxed);
+            self.rays.add(n);
         }
     }
 
