@@ -6,8 +6,9 @@
 //! comes back to it, and most receivers of its shots are far ones, so the same rays were traced
 //! shot after shot. Per shooter root, a table of two bits per receiver root (known, visible)
 //! keeps them; a later shot reads the verdict instead of tracing it, and a pair known blocked
-//! skips the link's form factor as well (the verdict is written only where it was positive, and
-//! it depends on the pair alone).
+//! skips the link's form factor as well (a verdict is written only after the pair's form factor
+//! was found positive, and that depends on the shooter root's geometry and cover and the
+//! receiver's link point alone).
 //!
 //! Invariants: a verdict read is the one the ray would give (the solve is the same with or
 //! without the tables: `tests/solver.rs`

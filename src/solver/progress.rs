@@ -5,7 +5,7 @@
 //! receivers done, and their share of the shot's estimated cost, every [`REPORT_INTERVAL`]; and
 //! the [`Reporter`], which makes the solver's [`Progress`] reports with the ETA (`eta.rs`).
 //!
-//! Invariants: the loop counts once per receiver root (no per-ray atomics); a report never
+//! Invariants: the loop counts once per piece of receiver roots (no per-ray atomics); a report never
 //! blocks the loop; a shot shorter than `REPORT_INTERVAL` makes no report from within (the
 //! reports between shots are the solver's), so small scenes report exactly as before.
 
@@ -24,7 +24,8 @@ const START_GRACE: Duration = Duration::from_millis(20);
 
 /// What a shot's loop has done: receivers, their cost units, and the unshot power they got
 /// against what was expected of them (both in the units of [`CostUnits`] for the expected
-/// total), all counted by [`ShotCounter::finished`].
+/// total), all counted by [`ShotCounter::add`] (a piece of the loop at once) or
+/// [`ShotCounter::finished`] (one receiver).
 #[derive(Debug, Default)]
 pub(super) struct ShotCounter {
     receivers: AtomicU64,
@@ -102,7 +103,8 @@ impl CostUnits {
     }
 }
 
-/// Runs `work` (a parallel loop that calls [`ShotCounter::finished`] once per receiver done)
+/// Runs `work` (a parallel loop that counts its receivers done with [`ShotCounter::add`] or
+/// [`ShotCounter::finished`])
 /// and, while it runs, calls `report` with its counts on the calling thread every
 /// [`REPORT_INTERVAL`].
 ///
@@ -297,14 +299,40 @@ mod tests {
     use super::*;
     use rayon::prelude::*;
 
-    /// A loop of `n` receivers of `each` each, counted as `shoot` counts them.
+    /// A loop of `n` receivers of `each` each, counted as `shoot` counts them: a piece of the
+    /// loop (two receivers here) adds its receivers at once.
     fn slow_loop(n: u64, each: Duration) -> impl FnOnce(&ShotCounter) + Send {
         move |done: &ShotCounter| {
-            (0..n).into_par_iter().for_each(|_| {
-                std::thread::sleep(each);
-                done.finished(1, 0, 0);
+            (0..n.div_ceil(2)).into_par_iter().for_each(|piece| {
+                let receivers = (n - 2 * piece).min(2);
+                std::thread::sleep(each * receivers as u32);
+                done.add(ShotCounts {
+                    receivers,
+                    units: receivers,
+                    ..ShotCounts::default()
+                });
             });
         }
+    }
+
+    /// Pieces added at once sum as their receivers one by one would, field by field.
+    #[test]
+    fn pieces_add_up_as_their_receivers() {
+        let (pieces, one_by_one) = (ShotCounter::default(), ShotCounter::default());
+        let receivers: Vec<(u64, u64, u64)> = (0..37).map(|i| (i * 3, i % 5, i * i)).collect();
+        for chunk in receivers.chunks(8) {
+            let mut sum = ShotCounts::default();
+            for &(u, e, r) in chunk {
+                sum.receivers += 1;
+                sum.units += u;
+                sum.expected += e;
+                sum.returned += r;
+                one_by_one.finished(u, e, r);
+            }
+            pieces.add(sum);
+        }
+        assert_eq!(pieces.load(), one_by_one.load());
+        assert_eq!(pieces.load().receivers, 37);
     }
 
     /// Receivers done one after the other (a loop that lasts `n * each` on any number of cores).
@@ -340,8 +368,15 @@ mod tests {
     #[test]
     fn a_short_loop_makes_no_report() {
         let mut reports = 0;
-        with_reports(slow_loop(4, Duration::ZERO), &mut |_| reports += 1);
-        assert_eq!(reports, 0);
+        let mut counted = 0;
+        with_reports(
+            |d: &ShotCounter| {
+                slow_loop(5, Duration::ZERO)(d);
+                counted = d.load().receivers;
+            },
+            &mut |_| reports += 1,
+        );
+        assert_eq!((reports, counted), (0, 5));
     }
 
     /// On a thread of a pool of one, or of a pool whose other threads are all busy, the loop

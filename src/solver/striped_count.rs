@@ -1,11 +1,14 @@
 //! A count the pool's threads add to at once without writing one shared cache line: one padded
-//! atomic per thread of the pool (and one for threads outside it), summed when read. A solve
-//! counts every ray and link; one shared atomic per far link was a line both cores took in turn
-//! (docs/performance-notes.md, "Far links known blocked").
+//! atomic per thread of the pool (and one for threads outside it), summed when read. Every ray
+//! packet and every far link of a solve adds to its counts: one shared atomic would be a cache
+//! line the cores take from each other at each add (docs/performance-notes.md, "Far links known
+//! blocked").
 //!
-//! Invariant: [`StripedCount::get`] is the sum of every `add` less every `sub` made before it
-//! (wrapping, so a stripe may go below zero while the sum does not); a reading taken while
-//! threads add may miss adds in flight, as a single atomic's would.
+//! Invariants: once the threads that added are joined, [`StripedCount::get`] is exactly every
+//! `add` less every `sub` (each stripe wraps, so a stripe may go below zero while the sum does
+//! not); a reading taken while they run is a sum of stripes read one after the other, which
+//! may miss operations in flight on some of them (an `add` on one stripe missed and its `sub`
+//! on another seen): it never reads below zero.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -43,18 +46,24 @@ impl StripedCount {
         &self.stripes[i % self.stripes.len()].0
     }
 
+    /// Adds `n` to the count.
     pub fn add(&self, n: u64) {
         self.stripe().fetch_add(n, Ordering::Relaxed);
     }
 
+    /// Takes `n` from the count (what was added, on this thread or another).
     pub fn sub(&self, n: u64) {
         self.stripe().fetch_sub(n, Ordering::Relaxed);
     }
 
+    /// The count: the stripes' wrapping sum, 0 where a reading during the adds would be below
+    /// zero (see the module header).
     pub fn get(&self) -> u64 {
-        self.stripes
+        let sum = self
+            .stripes
             .iter()
-            .fold(0u64, |sum, s| sum.wrapping_add(s.0.load(Ordering::Relaxed)))
+            .fold(0u64, |sum, s| sum.wrapping_add(s.0.load(Ordering::Relaxed)));
+        u64::try_from(sum as i64).unwrap_or(0)
     }
 }
 
@@ -64,10 +73,18 @@ mod tests {
     use rayon::prelude::*;
 
     /// Adds and subtractions from the pool's threads and from outside it sum exactly, a
-    /// subtraction made on another thread than the adds included; and a pool larger than the
-    /// count's stripes shares them.
+    /// subtraction made on another thread than the adds included; a pool larger than the
+    /// count's stripes shares them; each stripe has its cache lines to itself; a reading that
+    /// catches a subtraction before its add is 0.
     #[test]
     fn adds_from_every_thread_sum_exactly() {
+        assert_eq!(std::mem::align_of::<Stripe>(), 128);
+        assert_eq!(std::mem::size_of::<Stripe>(), 128);
+        let early = StripedCount::new();
+        early.sub(3);
+        assert_eq!(early.get(), 0);
+        early.add(5);
+        assert_eq!(early.get(), 2);
         let count = StripedCount::new();
         (0..10_000u64)
             .into_par_iter()
