@@ -42,8 +42,8 @@ const MAX_FACING_RECEIVERS: usize = 1024;
 /// Chosen on zdm2 and checked on the scaling benchmark's other scenes, so that the ETA stays
 /// within 2 of the time left on each (the same notes, "The indirect phase priced along a
 /// foreseen cost curve" and "Far links known blocked, counters off the shared cache line"; a
-/// change in what a far link costs moves them): the ETA corrects the level as the indirect shots come, the curve's shape
-/// is what it relies on.
+/// change in what a far link costs moves them): the ETA corrects the level as the indirect
+/// shots come, the curve's shape is what it relies on.
 const RAYS_PER_RECEIVER: f64 = 2.5;
 const RAYS_PER_POWER: f64 = 10000.0;
 /// Nats between the points of the cost curve, at least.

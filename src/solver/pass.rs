@@ -360,15 +360,11 @@ pub(super) fn shoot(
                         if took_light[i] {
                             *power = unshot_power(h, &roots[ri]);
                         }
-                        // Wrapping, as the counter's atomics add.
-                        finished.receivers += 1;
-                        finished.units = finished.units.wrapping_add(units.of(weights(ri)));
-                        finished.expected = finished
-                            .expected
-                            .wrapping_add(returns_units.of(expected(ri)));
-                        finished.returned = finished
-                            .returned
-                            .wrapping_add(returns_units.of(*power - before));
+                        finished.receiver(
+                            units.of(weights(ri)),
+                            returns_units.of(expected(ri)),
+                            returns_units.of(*power - before),
+                        );
                     }
                     done.add(finished);
                 },

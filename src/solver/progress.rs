@@ -5,8 +5,8 @@
 //! receivers done, and their share of the shot's estimated cost, every [`REPORT_INTERVAL`]; and
 //! the [`Reporter`], which makes the solver's [`Progress`] reports with the ETA (`eta.rs`).
 //!
-//! Invariants: the loop counts once per piece of receiver roots (no per-ray atomics); a report never
-//! blocks the loop; a shot shorter than `REPORT_INTERVAL` makes no report from within (the
+//! Invariants: the loop counts once per piece of receiver roots (no per-ray atomics); a report
+//! never blocks the loop; a shot shorter than `REPORT_INTERVAL` makes no report from within (the
 //! reports between shots are the solver's), so small scenes report exactly as before.
 
 use super::eta::{EtaEstimator, ShotPlan};
@@ -43,15 +43,23 @@ pub(super) struct ShotCounts {
     pub returned: u64,
 }
 
+impl ShotCounts {
+    /// Counts one receiver done: `units` of the cost, `expected` and `returned` units of
+    /// returns (wrapping, as the counter's atomics add).
+    pub(super) fn receiver(&mut self, units: u64, expected: u64, returned: u64) {
+        self.receivers += 1;
+        self.units = self.units.wrapping_add(units);
+        self.expected = self.expected.wrapping_add(expected);
+        self.returned = self.returned.wrapping_add(returned);
+    }
+}
+
 impl ShotCounter {
     /// One receiver is done: `units` of the cost, `expected` and `returned` units of returns.
     pub(super) fn finished(&self, units: u64, expected: u64, returned: u64) {
-        self.add(ShotCounts {
-            receivers: 1,
-            units,
-            expected,
-            returned,
-        });
+        let mut one = ShotCounts::default();
+        one.receiver(units, expected, returned);
+        self.add(one);
     }
 
     /// Receivers done together (a loop's piece adds its receivers once: the counter is one
@@ -323,10 +331,7 @@ mod tests {
         for chunk in receivers.chunks(8) {
             let mut sum = ShotCounts::default();
             for &(u, e, r) in chunk {
-                sum.receivers += 1;
-                sum.units += u;
-                sum.expected += e;
-                sum.returned += r;
+                sum.receiver(u, e, r);
                 one_by_one.finished(u, e, r);
             }
             pieces.add(sum);
