@@ -13,6 +13,7 @@ use crate::pipeline::{bake, prepare};
 use crate::scene::{Scene, SceneError};
 use crate::solver::{
     Progress, Quantity, Solution, SolverParams, StopReason, DEFAULT_TOLERANCE, FAR_VERDICT_BYTES,
+    NEAR_VERDICT_BYTES,
 };
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -153,19 +154,27 @@ const BYTES_PER_TRIANGLE: u64 = 512;
 const ELEMENTS_PER_TRIANGLE: u64 = 8;
 /// Per element: tree node (map, links) besides its coefficients.
 const BYTES_PER_NODE: u64 = 64;
+/// The near links' kept verdicts per triangle (a generous figure: the 70k-triangle level keeps
+/// about half of it), within [`NEAR_VERDICT_BYTES`].
+const NEAR_VERDICT_BYTES_PER_TRIANGLE: u64 = 4096;
 
 /// A rough upper estimate of a solve's memory (bytes): per triangle, its share of scene, faces
 /// and visibility structure, plus `ELEMENTS_PER_TRIANGLE` elements each holding four coefficient
 /// arrays (irradiance, direct, unshot, gathered) of `order^2` functions in three channels of f64;
 /// and the far links' verdicts (two bits per pair of roots, at most two roots per triangle,
-/// within [`FAR_VERDICT_BYTES`]).
+/// within [`FAR_VERDICT_BYTES`]) and the near links' (`NEAR_VERDICT_BYTES_PER_TRIANGLE`, within
+/// [`NEAR_VERDICT_BYTES`]).
 pub fn estimated_memory_bytes(triangles: usize, order: usize) -> u64 {
     let functions = (order * order) as u64;
     let element = functions * 4 * 3 * 8 + BYTES_PER_NODE;
     let t = triangles as u64;
-    let verdicts = t.saturating_mul(t).min(FAR_VERDICT_BYTES as u64);
+    let far = t.saturating_mul(t).min(FAR_VERDICT_BYTES as u64);
+    let near = t
+        .saturating_mul(NEAR_VERDICT_BYTES_PER_TRIANGLE)
+        .min(NEAR_VERDICT_BYTES as u64);
     t.saturating_mul(BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * element)
-        .saturating_add(verdicts)
+        .saturating_add(far)
+        .saturating_add(near)
 }
 
 /// Why a job failed.
@@ -304,21 +313,29 @@ pub fn run_job_keeping_solution(
 mod tests {
     use super::*;
 
-    /// The estimate counts the far links' verdicts: two bits per pair of at most two roots per
-    /// triangle, never more than their budget.
+    /// The estimate counts the links' kept verdicts: the far links' two bits per pair of at
+    /// most two roots per triangle, the near links' bytes per triangle, each never more than
+    /// its budget.
     #[test]
-    fn the_memory_estimate_counts_the_far_links_verdicts() {
+    fn the_memory_estimate_counts_the_links_verdicts() {
         let per_triangle = |order: usize| {
             BYTES_PER_TRIANGLE + ELEMENTS_PER_TRIANGLE * (order * order * 96 + 64) as u64
         };
         assert_eq!(
             estimated_memory_bytes(100, 2),
-            100 * per_triangle(2) + 10_000
+            100 * per_triangle(2) + 10_000 + 100 * NEAR_VERDICT_BYTES_PER_TRIANGLE
         );
         let level = 70_754;
         assert_eq!(
             estimated_memory_bytes(level, 3),
-            level as u64 * per_triangle(3) + FAR_VERDICT_BYTES as u64
+            level as u64 * per_triangle(3)
+                + FAR_VERDICT_BYTES as u64
+                + level as u64 * NEAR_VERDICT_BYTES_PER_TRIANGLE
+        );
+        let city = 1_000_000;
+        assert_eq!(
+            estimated_memory_bytes(city, 2),
+            city as u64 * per_triangle(2) + FAR_VERDICT_BYTES as u64 + NEAR_VERDICT_BYTES as u64
         );
         assert_eq!(estimated_memory_bytes(usize::MAX, 2), u64::MAX);
     }

@@ -811,29 +811,52 @@ fn tiled_room() -> Vec<u8> {
     b.to_glb()
 }
 
-/// The far links' verdicts kept between a root's shots (`far_verdicts.rs`) change no light:
-/// with the tables and without (a budget of 0 bytes), the same shots, links, elements and
-/// radiosity everywhere, and fewer rays with them (a few here, where most links are near ones;
-/// the 70k-triangle level's figures are in docs/performance-notes.md).
-#[test]
-fn far_link_verdicts_kept_between_shots_change_no_light_and_save_rays() {
-    let glb = tiled_room();
-    let scene = load_scene(&glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
-    let run = |far_verdict_bytes: usize| {
-        let params = SolverParams {
-            far_verdict_bytes,
-            ..Default::default()
-        };
-        let cancel = AtomicBool::new(false);
-        bake(&scene, DomainMode::Extended, params, &cancel, &mut |_| {}).expect("bakes")
-    };
-    let ((_, kept), (_, traced)) = (run(SolverParams::default().far_verdict_bytes), run(0));
+/// A closed grey room (six walls of one quad each, rho 0.8) lit by a small ceiling lamp, with
+/// the tiled room's two pillars casting shadows: few roots, each shooting many times.
+fn pillar_room() -> Vec<u8> {
+    let mut b = SceneBuilder::new();
+    let grey = b.material([0.8; 3], [0.0; 3], false);
+    let lamp = b.material([0.0; 3], [5.0; 3], false);
+    b.inward_box([grey; 6], DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0), 1);
+    b.quad(
+        lamp,
+        DVec3::new(1.9, 1.9, 1.99),
+        DVec3::Y * 0.2,
+        DVec3::X * 0.2,
+        1,
+    );
+    for x in [1.2, 2.7] {
+        b.inward_box(
+            [grey; 6],
+            DVec3::new(x, 1.7, 0.1),
+            DVec3::new(x + 0.2, 1.9, 1.8),
+            1,
+        );
+    }
+    b.to_glb()
+}
+
+/// The scene `glb` solved with the default parameters but for `change`.
+fn solve_room(glb: &[u8], change: impl FnOnce(&mut SolverParams)) -> Solution {
+    let scene = load_scene(glb, &ExternalFiles::Refuse, 1000).expect("scene loads");
+    let mut params = SolverParams::default();
+    change(&mut params);
+    let cancel = AtomicBool::new(false);
+    bake(&scene, DomainMode::Extended, params, &cancel, &mut |_| {})
+        .expect("bakes")
+        .1
+}
+
+/// Two solves of a room that must be the same but for their rays (`kept` reads verdicts
+/// back that `traced` traces): the same shots, links, elements and radiosity everywhere, and
+/// fewer rays in `kept`, after more than `shots` shots. Returns the two ray counts.
+fn assert_same_light_fewer_rays(kept: &Solution, traced: &Solution, shots: u64) -> (u64, u64) {
     let (a, b) = (&kept.stats, &traced.stats);
     println!(
-        "shots {} links {} elements {}; rays {} with the tables, {} without",
+        "shots {} links {} elements {}; rays {} kept, {} traced",
         a.iterations, a.links, a.elements, a.rays, b.rays
     );
-    assert!(a.iterations > 100, "the room needs many indirect shots");
+    assert!(a.iterations > shots, "the room needs many indirect shots");
     assert_eq!(
         (a.iterations, a.links, a.elements),
         (b.iterations, b.links, b.elements)
@@ -850,4 +873,38 @@ fn far_link_verdicts_kept_between_shots_change_no_light_and_save_rays() {
         }
     }
     assert!(a.rays < b.rays, "{} rays against {}", a.rays, b.rays);
+    (a.rays, b.rays)
+}
+
+/// The far links' verdicts kept between a root's shots (`far_verdicts.rs`) change no light:
+/// with the tables and without (a budget of 0 bytes), the same shots, links, elements and
+/// radiosity everywhere, and fewer rays with them (a few here, where most links are near ones;
+/// the 70k-triangle level's figures are in docs/performance-notes.md).
+#[test]
+fn far_link_verdicts_kept_between_shots_change_no_light_and_save_rays() {
+    let glb = tiled_room();
+    let kept = solve_room(&glb, |_| {});
+    let traced = solve_room(&glb, |p| p.far_verdict_bytes = 0);
+    assert_same_light_fewer_rays(&kept, &traced, 100);
+}
+
+/// The near links' verdicts kept between a root's shots (`near_verdicts.rs`) change no light:
+/// with the entries and without (a budget of 0 bytes), the same shots, links, elements and
+/// radiosity everywhere (the pillars cast shadows, so points' rays disagree among themselves),
+/// and at least a tenth fewer rays with them (the walls shoot again and again, and their near
+/// links read what their earlier shots traced).
+#[test]
+fn near_link_verdicts_kept_between_shots_change_no_light_and_save_rays() {
+    let glb = pillar_room();
+    let coarse = |p: &mut SolverParams| p.tolerance = 1e-4;
+    let kept = solve_room(&glb, coarse);
+    let traced = solve_room(&glb, |p| {
+        coarse(p);
+        p.near_verdict_bytes = 0;
+    });
+    let (kept, traced) = assert_same_light_fewer_rays(&kept, &traced, 60);
+    assert!(
+        (kept as f64) < 0.9 * traced as f64,
+        "{kept} rays against {traced}"
+    );
 }

@@ -22,9 +22,11 @@ use super::element::{
 use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
 use super::kernel;
+use super::near_verdicts::ALL_VISIBLE;
 use super::quadrature::{self, QuadPoint};
 use super::refine::Shot;
 use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
+use super::shot_record::SourcePath;
 use super::source::{PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
@@ -41,6 +43,9 @@ pub(super) struct SourceElement {
     pub depth: u8,
     /// The shooter's stored node with this map, when there is one.
     pub node: Option<usize>,
+    /// Where the element lies under the shooter's root: the splits that lead to it (the key of
+    /// its near links' kept verdicts, `near_verdicts.rs`).
+    pub path: SourcePath,
     /// The unshot radiosity shot from this element.
     pub coeffs: [Rgb; MAX_FUNCTIONS],
     /// Extended shooter only: how the element covers the face.
@@ -87,6 +92,7 @@ impl SourceElement {
             map: ChildMap::IDENTITY,
             depth: 0,
             node: Some(0),
+            path: SourcePath::ROOT,
             coeffs,
             rings: partial_face_rings(root, &ChildMap::IDENTITY, cover.as_ref()),
             cover,
@@ -130,6 +136,10 @@ impl Shot for ElementShot<'_> {
         Some(ElementSource::new(self, src, weight))
     }
 
+    fn verdict_key(&self, s: &SourceElement) -> Option<(usize, SourcePath)> {
+        (!self.direct).then_some((self.source_root, s.path))
+    }
+
     fn children(&self, s: &SourceElement) -> [SourceElement; 4] {
         let sroot = &self.roots[self.source_root];
         let shape = sroot.shape;
@@ -171,6 +181,7 @@ impl Shot for ElementShot<'_> {
                 map,
                 depth: s.depth + 1,
                 node: stored,
+                path: s.path.child(c),
                 coeffs,
                 cover,
             }
@@ -381,6 +392,7 @@ impl<'s> ElementSource<'s> {
         let mut out = PointIrradiance {
             unoccluded,
             form_factor: f,
+            seen,
             ..PointIrradiance::default()
         };
         let alpha = &self.alpha;
@@ -499,18 +511,35 @@ impl<'s> ElementSource<'s> {
         Some(rule)
     }
 
+    /// The packet of shadow rays from `x` to the rule's points that emit, in the rule's order
+    /// (`with_verdicts` skips the others with the same test, so it reads the verdicts in packing
+    /// order): one bit per ray, [`ALL_VISIBLE`] when all passed.
+    fn trace_rule(&self, x: DVec3, ignore: [u32; 2]) -> u64 {
+        let mut targets = [DVec3::ZERO; POINTS];
+        let mut rays = 0;
+        for l in 0..self.rule.len() {
+            if self.alpha[l] <= 0.0 {
+                continue;
+            }
+            targets[rays] = self.ys_vis[l];
+            rays += 1;
+        }
+        trace_packet(self.shot.visibility, x, &targets[..rays], ignore)
+    }
+
     /// What the source delivers at `x` (normal `n`, exact form factor `f`) sampled by the
     /// `front` rule, its shadow rays decided as `rays` says (one per point; every point seen; or
-    /// one ray, to the front part's centroid, for all of them): the visible points'
-    /// kernel-weighted radiosity scaled to `f`, and the flags and the sampling error as
-    /// [`ElementSource::with_verdicts`] gives them with the element's own rule. `None` when no
-    /// front point exchanges light (a sliver of front part at grazing angles).
+    /// one ray, to the front part's centroid, for all of them) unless `known` (an earlier
+    /// shot's, [`PointIrradiance::seen`]): the visible points' kernel-weighted radiosity scaled
+    /// to `f`, and the flags and the sampling error as [`ElementSource::with_verdicts`] gives
+    /// them with the element's own rule. `None` when no front point exchanges light (a sliver
+    /// of front part at grazing angles).
     fn front_irradiance(
         &self,
         (x, n, f): (DVec3, DVec3, f64),
         ignore: [u32; 2],
         front: &FrontRule,
-        rays: Rays,
+        (rays, known): (Rays, Option<u64>),
     ) -> Option<PointIrradiance> {
         let k = front.len;
         let mut terms = [0.0; POINTS];
@@ -525,30 +554,24 @@ impl<'s> ElementSource<'s> {
             return None;
         }
         let visibility = self.shot.visibility;
-        let seen = match rays {
-            Rays::Trace => {
-                visibility.count_rays(k as u64);
-                visibility.visible_from(x, &front.points[..k], ignore)
-            }
-            Rays::AllPass => u64::MAX,
-            Rays::Centre => {
+        let seen = match (rays, known) {
+            (Rays::AllPass, _) => ALL_VISIBLE,
+            (_, Some(seen)) => seen,
+            (Rays::Trace, None) => trace_packet(visibility, x, &front.points[..k], ignore),
+            (Rays::Centre, None) => {
                 let w: f64 = front.weights[..k].iter().sum();
                 let centroid = (0..k)
                     .map(|i| front.points[i] * front.weights[i])
                     .sum::<DVec3>()
                     / w;
-                visibility.count_rays(1);
-                if visibility.visible_from(x, &[centroid], ignore) & 1 == 1 {
-                    u64::MAX
-                } else {
-                    0
-                }
+                trace_packet(visibility, x, &[centroid], ignore)
             }
         };
         let unoccluded = f * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
             form_factor: f,
+            seen,
             ..PointIrradiance::default()
         };
         let mut e = [0.0; 3];
@@ -586,37 +609,23 @@ impl Source for ElementSource<'_> {
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
+        known: Option<u64>,
     ) -> Option<PointIrradiance> {
         let f = self.form_factor(x, n);
         if f <= 0.0 {
             return None;
         }
         if let Some(front) = self.front_rule(x, n) {
-            if let Some(out) = self.front_irradiance((x, n, f), ignore, &front, rays) {
+            if let Some(out) = self.front_irradiance((x, n, f), ignore, &front, (rays, known)) {
                 return Some(out);
             }
         }
-        match rays {
-            Rays::AllPass => return Some(self.with_verdicts(x, n, f, u64::MAX)),
-            Rays::Centre => {
-                return Some(self.with_verdicts(x, n, f, self.centre_verdict(x, ignore)));
-            }
-            Rays::Trace => {}
-        }
-        let visibility = self.shot.visibility;
-        // One packet of shadow rays, to the rule's points that emit (`with_verdicts` skips the
-        // others with the same test, so it reads the verdicts in packing order).
-        let mut targets = [DVec3::ZERO; POINTS];
-        let mut rays = 0;
-        for l in 0..self.rule.len() {
-            if self.alpha[l] <= 0.0 {
-                continue;
-            }
-            targets[rays] = self.ys_vis[l];
-            rays += 1;
-        }
-        let seen = visibility.visible_from(x, &targets[..rays], ignore);
-        visibility.count_rays(rays as u64);
+        let seen = match (rays, known) {
+            (Rays::AllPass, _) => ALL_VISIBLE,
+            (_, Some(seen)) => seen,
+            (Rays::Centre, None) => self.centre_verdict(x, ignore),
+            (Rays::Trace, None) => self.trace_rule(x, ignore),
+        };
         Some(self.with_verdicts(x, n, f, seen))
     }
 
@@ -697,6 +706,19 @@ impl Source for ElementSource<'_> {
             // transfer.
             detail: !self.shot.direct && self.src.node.is_some_and(|n| !h.nodes[n].is_leaf()),
         }
+    }
+}
+
+/// The packet of shadow rays from `x` to `targets`, counted: one bit per ray, [`ALL_VISIBLE`]
+/// when all passed (so a point's verdict reads the same whatever its number of rays).
+fn trace_packet(visibility: &Visibility, x: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
+    visibility.count_rays(targets.len() as u64);
+    let seen = visibility.visible_from(x, targets, ignore);
+    let all = u64::MAX >> (64 - targets.len().clamp(1, 64));
+    if !targets.is_empty() && seen & all == all {
+        ALL_VISIBLE
+    } else {
+        seen
     }
 }
 

@@ -285,7 +285,7 @@ pub(super) mod tests {
                 let ignore = source.ignored_faces(1);
                 let x = DVec3::new(0.5, 0.5, 20.0);
                 let whole = source
-                    .irradiance_at(x, receiver.normal, ignore, Rays::Trace)
+                    .irradiance_at(x, receiver.normal, ignore, Rays::Trace, None)
                     .map(|p| p.e);
                 let before = visibility.rays_traced();
                 let far = far_irradiance(source, receiver, link_point(receiver), None);

@@ -14,6 +14,7 @@
 
 use super::basis::{child_maps, Basis, ChildMap, MAX_FUNCTIONS};
 use super::cover::{self, CoverRules, NodeCover};
+use super::near_verdicts::NearVerdicts;
 use super::node_reflectance::{self, NodeReflectance};
 use crate::domain::{ElementRoot, Shape};
 use crate::scene::Rgb;
@@ -56,6 +57,9 @@ pub struct Hierarchy {
     /// Roots whose reflectance varies only: per node, its reflectance
     /// ([`super::node_reflectance`]); empty otherwise (the root's `rho` holds everywhere).
     pub reflectance: Vec<NodeReflectance>,
+    /// The shadow-ray verdicts of the near links this root received in indirect shots, kept for
+    /// its shooters' next shots ([`super::near_verdicts`]); emptied when the solve ends.
+    pub(super) near_verdicts: NearVerdicts,
 }
 
 impl Hierarchy {
@@ -74,6 +78,7 @@ impl Hierarchy {
             touched: false,
             covers: Vec::new(),
             reflectance: Vec::new(),
+            near_verdicts: NearVerdicts::default(),
         }
     }
 

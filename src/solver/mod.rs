@@ -9,8 +9,11 @@
 //! unshot power shoots, in a pass with roots of at least half its power that face none of the
 //! pass's others, until `unshot_ratio = unshot power / direct power received <= target`. Links
 //! are not cached: each transfer is recomputed when its source shoots again (memory stays
-//! proportional to elements); only a far link's shadow-ray verdict is kept per pair of roots,
-//! two bits each, within a fixed budget (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]). Receivers
+//! proportional to elements); only what their shadow rays said, which depends on geometry
+//! alone, is kept between a root's shots, each within a fixed budget: a far link's verdict per
+//! pair of roots, two bits each (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]), and a near link's
+//! ray masks per pair of source element and receiver node (`near_verdicts.rs`,
+//! [`NEAR_VERDICT_BYTES`]). Receivers
 //! of one pass are processed in parallel (rayon); the shooters are read-only during it, and
 //! refined only virtually (sub-elements computed by push, not stored).
 
@@ -27,6 +30,7 @@ pub(crate) mod hierarchy;
 mod indirect_forecast;
 pub mod kernel;
 pub(crate) mod lights;
+mod near_verdicts;
 pub(crate) mod node_reflectance;
 mod node_sums;
 mod oracle;
@@ -81,6 +85,11 @@ pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
 /// shooters; beyond it a shooter traces its far links every shot. Counted in
 /// `job::estimated_memory_bytes`.
 pub const FAR_VERDICT_BYTES: usize = 256 << 20;
+/// What the near links' kept shadow-ray verdicts may take by default (`near_verdicts.rs`): one
+/// entry per link a receiver root took from an indirect shot (its points' ray masks, a few dozen
+/// bytes when each point's rays agree); beyond it links trace every shot. Counted in
+/// `job::estimated_memory_bytes`.
+pub const NEAR_VERDICT_BYTES: usize = 512 << 20;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
 /// Stack of each thread of a pool that solves: a thread waiting for a stolen piece of a direct
@@ -106,6 +115,10 @@ pub struct SolverParams {
     /// Bytes the far links' shadow-ray verdicts may keep between a root's shots
     /// (`far_verdicts.rs`); 0 traces every far link's ray every shot (the same solve, more rays).
     pub far_verdict_bytes: usize,
+    /// Bytes the near links' shadow-ray verdicts may keep between a root's shots
+    /// (`near_verdicts.rs`); 0 traces every near link's rays every shot (the same solve, more
+    /// rays).
+    pub near_verdict_bytes: usize,
 }
 
 impl Default for SolverParams {
@@ -120,6 +133,7 @@ impl Default for SolverParams {
             max_iterations: DEFAULT_MAX_ITERATIONS,
             node_sums: true,
             far_verdict_bytes: FAR_VERDICT_BYTES,
+            near_verdict_bytes: NEAR_VERDICT_BYTES,
         }
     }
 }

@@ -79,8 +79,13 @@ pub(super) fn evaluate(
     {
         // The quadrature rays agree, but they sample the interior only, and sparsely: a shadow
         // boundary near an element's border (a wall standing on a slab, an eave over a wall)
-        // slips between them, and so does a strip of a large source seen through a gap.
-        partial = verdict_rays_disagree(ctx, source, receiver, received.any_visible);
+        // slips between them, and so does a strip of a large source seen through a gap. What
+        // they said is kept with the link's other verdicts (`near_verdicts.rs`).
+        partial = received.verdict_rays.get().unwrap_or_else(|| {
+            let disagree = verdict_rays_disagree(ctx, source, receiver, received.any_visible);
+            received.verdict_rays.set(Some(disagree));
+            disagree
+        });
     }
     // A source the receiver's points do not see (they lie behind its plane, or beside it)
     // while the source's points see the receiver: the link would carry nothing and pass.

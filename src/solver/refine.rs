@@ -10,6 +10,7 @@
 use super::basis::MAX_FUNCTIONS;
 use super::element::Sphere;
 use super::hierarchy::Hierarchy;
+use super::near_verdicts::{KnownVerdicts, LinkKey, VerdictBudget};
 use super::node_reflectance;
 use super::oracle::{self, oracle_weight, Verdict};
 use super::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
@@ -41,6 +42,11 @@ pub(super) trait Shot: Sync {
 
     /// The four children of a part the oracle split.
     fn children(&self, part: &Self::Part) -> [Self::Part; 4];
+
+    /// The shooter root and the part's path under it, when the part's near links keep their
+    /// rays' verdicts for the root's next shots (`near_verdicts.rs`): an indirect shot's
+    /// elements; `None` for a direct shot (an emitter's emission is shot once) and a light.
+    fn verdict_key(&self, part: &Self::Part) -> Option<(usize, SourcePath)>;
 }
 
 /// What every shot of a solve shares.
@@ -81,6 +87,8 @@ pub(super) struct ShotContext<'a> {
     pub spheres: &'a [Sphere],
     /// Each root's far-link point (`far_field::link_point`).
     pub link_points: &'a [DVec3],
+    /// The bytes the receivers' kept near-link verdicts may take (`near_verdicts.rs`).
+    pub near_verdicts: &'a VerdictBudget,
 }
 
 impl ShotContext<'_> {
@@ -194,7 +202,13 @@ impl ShotContext<'_> {
             (Rays::AllPass, Some(c)) if c.status != ElementStatus::Full => Rays::Trace,
             (rays, _) => rays,
         };
-        let received = Box::new(self.receive(&source, &receiver, rays));
+        // A link whose rays a shot of the same root traced before reads their verdicts back.
+        let key = shot
+            .verdict_key(part)
+            .filter(|_| rays != Rays::AllPass)
+            .map(|(s, path)| LinkKey::new(s, path, b, rays == Rays::Centre));
+        let known = key.and_then(|k| rcv.near_verdicts.known(&k));
+        let received = Box::new(self.receive(&source, &receiver, rays, known.as_ref()));
         let verdict =
             judge.then(|| oracle::evaluate(self, &source, &receiver, &received, weight, rays));
         Some(Evaluation {
@@ -202,6 +216,7 @@ impl ShotContext<'_> {
             rays,
             received,
             verdict,
+            key,
         })
     }
 
@@ -225,6 +240,7 @@ impl ShotContext<'_> {
             rays,
             received,
             verdict,
+            key,
         } = evaluation;
         let verdict = if let Some(verdict) = verdict {
             verdict
@@ -236,6 +252,12 @@ impl ShotContext<'_> {
             let receiver = ReceiverNode::new(rroot, rcv, b);
             oracle::evaluate(self, &source, &receiver, &received, weight, rays)
         };
+        if let Some(key) = key {
+            let seen = &received.seen[..received.points];
+            let verdict_rays = received.verdict_rays.get();
+            rcv.near_verdicts
+                .keep(key, seen, verdict_rays, self.near_verdicts);
+        }
         match verdict {
             Verdict::Accept => self.accept(path, rroot, rcv, b, &received, record),
             Verdict::Capped => {
@@ -272,8 +294,14 @@ impl ShotContext<'_> {
     }
 
     /// The source's irradiance at the receiver's rule points, and at its check points when the
-    /// node sums are judged.
-    fn receive(&self, source: &impl Source, receiver: &ReceiverNode, rays: Rays) -> Received {
+    /// node sums are judged; an earlier shot's verdicts read back where they are `known`.
+    fn receive(
+        &self,
+        source: &impl Source,
+        receiver: &ReceiverNode,
+        rays: Rays,
+        known: Option<&KnownVerdicts>,
+    ) -> Received {
         let shape = receiver.root.shape;
         let check_points = if self.node_sums {
             corner_probe_points(shape).len()
@@ -288,6 +316,7 @@ impl ShotContext<'_> {
             self.bases.of(shape).len(),
             check_points,
             rays,
+            known,
         );
         if received.touching > 0 {
             self.touching
@@ -354,13 +383,15 @@ impl ShotContext<'_> {
     }
 }
 
-/// A link evaluated: where its part lies, how its rays were decided, what it delivered, and the
-/// oracle's verdict when it was judged at once (`None`: to be judged when acted on).
+/// A link evaluated: where its part lies, how its rays were decided, what it delivered, the
+/// oracle's verdict when it was judged at once (`None`: to be judged when acted on), and the key
+/// its rays' verdicts are kept under when its shot keeps them.
 struct Evaluation {
     path: SourcePath,
     rays: Rays,
     received: Box<Received>,
     verdict: Option<Verdict>,
+    key: Option<LinkKey>,
 }
 
 /// A link of a shot's recursion: where its part lies under the part the recursion started from,

@@ -16,6 +16,7 @@ use super::far_verdicts::FarVerdicts;
 use super::forecast_inputs::foresee_indirect;
 use super::hierarchy::Hierarchy;
 use super::lights;
+use super::near_verdicts::VerdictBudget;
 use super::pass::{pick_shooters, shoot, unshot_power};
 use super::progress::{with_reports, CostUnits, Reporter, ShotCounter};
 use super::refine::ShotContext;
@@ -67,6 +68,7 @@ pub fn solve(
     let counters = Counters::default();
     let spheres: Vec<Sphere> = roots.iter().map(Sphere::of_root).collect();
     let link_points: Vec<DVec3> = roots.iter().map(far_field::link_point).collect();
+    let near_verdicts = VerdictBudget::new(params.near_verdict_bytes);
     // A shadow ray towards a directional light ends this far away: beyond the scene.
     let far = 4.0 * diagonal;
     let light_estimate: f64 = lights
@@ -97,6 +99,7 @@ pub fn solve(
             .and_then(|m| start.checked_add(std::time::Duration::try_from_secs_f64(m).ok()?)),
         spheres: &spheres,
         link_points: &link_points,
+        near_verdicts: &near_verdicts,
     };
     let mut convergence = Vec::new();
     let mut reporter = Reporter::new(
@@ -212,6 +215,10 @@ pub fn solve(
         }
     }
     tracing::debug!(bytes = far_verdicts.bytes(), "far links' verdicts kept");
+    tracing::debug!(bytes = near_verdicts.used(), "near links' verdicts kept");
+    for h in &mut hierarchies {
+        h.near_verdicts.clear();
+    }
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {
         iterations,

@@ -24,7 +24,7 @@ use std::mem::size_of;
 /// Where a part of a shot lies under the part the shot's recursion started from: the child taken
 /// at each split (two bits a level, the first split lowest) and the number of splits (the top
 /// byte).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub(super) struct SourcePath(u32);
 
 impl SourcePath {
@@ -527,6 +527,10 @@ mod tests {
             Self: 's;
 
         fn source<'s>(&'s self, _: &'s Vec<usize>, _: Rgb) -> Option<Self::Source<'s>> {
+            None
+        }
+
+        fn verdict_key(&self, _: &Vec<usize>) -> Option<(usize, SourcePath)> {
             None
         }
 

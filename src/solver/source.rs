@@ -18,9 +18,11 @@ use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::lights::{shadow_target, unoccluded_irradiance};
 use super::mean_rgb_sum;
+use super::near_verdicts::ALL_VISIBLE;
 use super::node_reflectance;
 use super::refine::Shot;
 use super::rules::corner_probe_points;
+use super::shot_record::SourcePath;
 use super::visibility::Visibility;
 use crate::domain::{ElementRoot, Shape};
 use crate::scene::{PunctualLight, Rgb};
@@ -67,6 +69,9 @@ pub(super) struct PointIrradiance {
     /// No source point lay in front of the receiver (touching elements): the exact form factor
     /// times the visible fraction stood in for the quadrature.
     pub touching: bool,
+    /// What the point's shadow rays said, one bit per ray in the order they were cast
+    /// ([`ALL_VISIBLE`] when all passed): a verdict a later shot may read back as `known`.
+    pub seen: u64,
 }
 
 /// Whether, and how, the oracle may split a source.
@@ -90,13 +95,15 @@ pub(super) trait Source {
     /// faces `ignore` ([`Source::ignored_faces`]); `None` when nothing reaches it unoccluded
     /// (behind the source, outside a spot's cone).
     /// `rays`: trace the shadow rays, take them all as passing, or cast one per point to the
-    /// source's centre ([`Rays`]).
+    /// source's centre ([`Rays`]); `known`: what they said when a shot traced them before
+    /// ([`PointIrradiance::seen`], `near_verdicts.rs`), read instead of tracing.
     fn irradiance_at(
         &self,
         x: DVec3,
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
+        known: Option<u64>,
     ) -> Option<PointIrradiance>;
 
     /// The unoccluded irradiance at `x` of the source's mean (the oracle's corner probes).
@@ -193,6 +200,7 @@ impl Source for LightSource<'_> {
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
+        known: Option<u64>,
     ) -> Option<PointIrradiance> {
         let (e, target) = unoccluded_irradiance(self.light, x, n, self.far);
         if mean_rgb_sum(e) <= 0.0 {
@@ -200,12 +208,17 @@ impl Source for LightSource<'_> {
         }
         let weight = self.weight;
         let unoccluded = (0..3).map(|c| weight[c] * e[c]).sum::<f64>();
-        let visible = rays == Rays::AllPass || self.visibility.visible(x, target, ignore);
+        let visible = rays == Rays::AllPass
+            || known.map_or_else(
+                || self.visibility.visible(x, target, ignore),
+                |m| m & 1 == 1,
+            );
         Some(PointIrradiance {
             e: if visible { e } else { [0.0; 3] },
             unoccluded,
             any_visible: visible,
             any_blocked: !visible,
+            seen: if visible { ALL_VISIBLE } else { 0 },
             ..PointIrradiance::default()
         })
     }
@@ -264,6 +277,10 @@ impl Shot for LightShot<'_> {
             visibility: self.visibility,
             weight,
         })
+    }
+
+    fn verdict_key(&self, _: &()) -> Option<(usize, SourcePath)> {
+        None
     }
 
     fn children(&self, _: &()) -> [(); 4] {

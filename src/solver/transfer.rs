@@ -7,9 +7,11 @@
 
 use super::basis::MAX_FUNCTIONS;
 use super::element::receiving_point;
+use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
 use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
+use std::cell::Cell;
 
 /// Most points a receiver is asked at: its rule's, then its check points.
 pub(super) const MAX_POINTS: usize = 64;
@@ -40,12 +42,19 @@ pub(super) struct Received {
     /// from a node sample what its children see, not its grandchildren); nor after
     /// [`Rays::Centre`] (one ray per point does not sample the source).
     pub all_pass: bool,
+    /// Each point's shadow-ray verdicts ([`PointIrradiance::seen`](super::source::PointIrradiance),
+    /// 0 where no ray was cast), and whether the oracle's verdict rays disagreed with them, once
+    /// it asked (`oracle.rs`): what the link's receiver keeps for the shooter's next shots
+    /// (`near_verdicts.rs`).
+    pub seen: [u64; MAX_POINTS],
+    pub verdict_rays: Cell<Option<bool>>,
 }
 
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
 /// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
 /// rule points' irradiance onto the receiver's basis; `rays` says how the shadow rays are
-/// decided.
+/// decided, unless an earlier shot's verdicts for this link are `known`.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
     receiver: &ReceiverNode,
@@ -54,6 +63,7 @@ pub(super) fn receive(
     nr: usize,
     check_points: usize,
     rays: Rays,
+    known: Option<&KnownVerdicts>,
 ) -> Received {
     let root = receiver.root;
     let ignore = source.ignored_faces(root.face.0);
@@ -71,19 +81,23 @@ pub(super) fn receive(
         exchange_seen_by_receiver: 0.0,
         touching: 0,
         all_pass: rays == Rays::Trace,
+        seen: [0; MAX_POINTS],
+        verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
     for k in 0..out.points {
         let x = match rule.get(k) {
             Some(q) => receiving_point(root, &receiver.patch, receiver.cover, k, q.st),
             None => receiver.check_point(k - nk),
         };
-        let Some(p) = source.irradiance_at(x, root.normal, ignore, rays) else {
+        let Some(p) = source.irradiance_at(x, root.normal, ignore, rays, known.map(|v| v.seen(k)))
+        else {
             // No ray sampled what this point's neighbours in a child may see.
             out.all_pass = false;
             continue;
         };
         out.all_pass &= p.any_visible && !p.any_blocked;
         out.e[k] = p.e;
+        out.seen[k] = p.seen;
         let Some(q) = rule.get(k) else {
             continue;
         };
@@ -130,6 +144,7 @@ mod tests {
                 bases.of(shape).len(),
                 corner_probe_points(shape).len(),
                 rays,
+                None,
             );
             (got, visibility.rays_traced() - before)
         })

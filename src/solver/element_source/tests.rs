@@ -76,7 +76,7 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
             .far_irradiance_at(x, down, ignore, None)
             .expect("in front");
         let near = source
-            .irradiance_at(x, down, ignore, Rays::Trace)
+            .irradiance_at(x, down, ignore, Rays::Trace, None)
             .expect("in front")
             .e;
         far[0] / near[0]
@@ -216,6 +216,7 @@ fn a_source_cut_by_the_receivers_plane_is_sampled_in_front_of_it() {
             DVec3::X,
             source.ignored_faces(1),
             Rays::Trace,
+            None,
         )
         .expect("in front")
         .e[0];
@@ -267,6 +268,7 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
             DVec3::X,
             source.ignored_faces(1),
             Rays::Trace,
+            None,
         )
         .expect("in front");
     assert_eq!(
@@ -276,6 +278,23 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
     assert!(
         got.any_visible && got.any_blocked,
         "the eave's shadow crosses the front part"
+    );
+    // What the rays said, read back by a later shot (`near_verdicts.rs`): the same light, and no
+    // ray traced.
+    let before = visibility.rays_traced();
+    let again = source
+        .irradiance_at(
+            UNDER_THE_EAVE,
+            DVec3::X,
+            source.ignored_faces(1),
+            Rays::Trace,
+            Some(got.seen),
+        )
+        .expect("in front");
+    assert_eq!(visibility.rays_traced(), before);
+    assert_eq!(
+        (again.e, again.any_visible, again.any_blocked, again.seen),
+        (got.e, got.any_visible, got.any_blocked, got.seen)
     );
     let (exact, unoccluded) = fine_grid(&roots[0], |st| {
         let mut phi = [0.0; MAX_FUNCTIONS];
