@@ -4,8 +4,9 @@
 //! are evaluated, shot after shot, between the same parts: the same element of the shooter (its
 //! path of splits from the root, [`SourcePath`]) and the same node of the receiver (nodes are
 //! only ever added). What such a link's rays say depends on geometry alone: the receiver node's
-//! points, the source element's emitting rule points (or its centre), the two faces the rays
-//! ignore; and so does whether the oracle's verdict rays (corners, then spread pairs) disagree
+//! points, the source element's emitting rule points (or its centre; or, where a point's tangent
+//! plane cuts the element, its rule carried onto the part in front, `front_map.rs`), the two
+//! faces the rays ignore; and so does whether the oracle's verdict rays (corners, then spread pairs) disagree
 //! with the quadrature's. Each receiver root keeps, in its hierarchy, one entry per such link
 //! ([`LinkKey`]: shooter root, source path, receiver node, one ray per point or a packet):
 //! per receiver point its ray mask, and the verdict rays' answer once the oracle asked for it.
@@ -14,10 +15,11 @@
 //! Invariants: a verdict read is the one the rays would give (the solve is the same with or
 //! without the entries: `tests/solver.rs`
 //! `near_link_verdicts_kept_between_shots_change_no_light_and_save_rays`); the entries of all
-//! receivers take about at most the budget (`SolverParams::near_verdict_bytes`; a table grows
-//! only when its grown size still fits): beyond it, links trace as before. An entry is written
-//! by the thread that holds the receiver's hierarchy, never changed but for the verdict rays'
-//! answer, which it gains once.
+//! receivers take about at most the budget (`SolverParams::near_verdict_bytes`): a table
+//! reserves its grown size from the shared [`VerdictBudget`] before it grows, and links it has
+//! no room for trace as before (which links those are then depends on the threads' timing: the
+//! light does not, the ray count may). An entry is written by the thread that holds the
+//! receiver's hierarchy, never changed but for the verdict rays' answer, which it gains once.
 
 use super::shot_record::SourcePath;
 use super::transfer::MAX_POINTS;
@@ -64,6 +66,12 @@ pub(super) const ALL_VISIBLE: u64 = u64::MAX;
 
 /// Bytes a table entry takes, with the hash table's control byte.
 const ENTRY_BYTES: usize = std::mem::size_of::<(LinkKey, Entry)>() + 1;
+
+/// Bytes of a table holding `entries` entries and `masks` masks without growing: the hash
+/// table's buckets are about 8/7 of what it holds.
+fn table_bytes(entries: usize, masks: usize) -> usize {
+    entries * ENTRY_BYTES * 8 / 7 + masks * std::mem::size_of::<u64>()
+}
 
 /// One receiver root's kept verdicts.
 #[derive(Debug, Clone, Default)]
@@ -121,8 +129,22 @@ impl VerdictBudget {
         self.used.load(Ordering::Relaxed)
     }
 
-    fn fits(&self, more: usize) -> bool {
-        self.used().saturating_add(more) <= self.limit
+    /// Takes `bytes` from the budget if they fit.
+    fn reserve(&self, bytes: usize) -> bool {
+        self.used
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |u| {
+                u.checked_add(bytes).filter(|&total| total <= self.limit)
+            })
+            .is_ok()
+    }
+
+    /// Sets what a reservation of `reserved` bytes turned out to take: `actual`.
+    fn settle(&self, reserved: usize, actual: usize) {
+        if actual >= reserved {
+            self.used.fetch_add(actual - reserved, Ordering::Relaxed);
+        } else {
+            self.used.fetch_sub(reserved - actual, Ordering::Relaxed);
+        }
     }
 }
 
@@ -156,7 +178,7 @@ impl NearVerdicts {
         let uniform = seen.iter().all(|&m| m == 0 || m == ALL_VISIBLE);
         let before = self.bytes();
         // What the table will take once the entry is in (the hash table and the masks grow as
-        // their std implementations do: about double).
+        // their std implementations do: about double), reserved before it grows.
         let (len, capacity) = (self.entries.len(), self.entries.capacity());
         let entries_after = if len == capacity {
             (2 * capacity + 1).max(3)
@@ -169,16 +191,26 @@ impl NearVerdicts {
         } else {
             self.masks.capacity()
         };
-        let after = entries_after * ENTRY_BYTES + masks_after * 8;
-        if !budget.fits(after.saturating_sub(before)) {
+        let reserved = table_bytes(entries_after, masks_after).saturating_sub(before);
+        if !budget.reserve(reserved) {
             return;
         }
         let mixed = if uniform {
             NO_MASKS
         } else {
-            let start = self.masks.len();
-            self.masks.extend_from_slice(seen);
-            start as u32
+            // An offset that would reach `NO_MASKS` is not kept (some 32 GiB of one receiver's
+            // masks).
+            match u32::try_from(self.masks.len() + seen.len()) {
+                Ok(end) if end < NO_MASKS => {
+                    let start = self.masks.len() as u32;
+                    self.masks.extend_from_slice(seen);
+                    start
+                }
+                _ => {
+                    budget.settle(reserved, 0);
+                    return;
+                }
+            }
         };
         let visible = seen
             .iter()
@@ -193,14 +225,12 @@ impl NearVerdicts {
                 verdict_rays: answer,
             },
         );
-        budget
-            .used
-            .fetch_add(self.bytes().saturating_sub(before), Ordering::Relaxed);
+        budget.settle(reserved, self.bytes().saturating_sub(before));
     }
 
-    /// Bytes the table takes (about: the hash table's slots, its control bytes, the masks).
+    /// Bytes the table takes (about: the hash table's buckets, its control bytes, the masks).
     pub fn bytes(&self) -> usize {
-        self.entries.capacity() * ENTRY_BYTES + self.masks.capacity() * 8
+        table_bytes(self.entries.capacity(), self.masks.capacity())
     }
 
     /// Frees the table (the solve is over: no shot reads it again).
@@ -258,7 +288,8 @@ mod tests {
     /// new, and what was kept stays readable.
     #[test]
     fn tables_stay_within_the_budget() {
-        let budget = VerdictBudget::new(64 * ENTRY_BYTES + 256);
+        let limit = table_bytes(64, 32);
+        let budget = VerdictBudget::new(limit);
         let mut tables = [NearVerdicts::default(), NearVerdicts::default()];
         for node in 0..1000 {
             let t = &mut tables[node % 2];
@@ -270,7 +301,7 @@ mod tests {
         assert!(kept > 0 && kept < 1000, "{kept} kept");
         let bytes: usize = tables.iter().map(NearVerdicts::bytes).sum();
         assert_eq!(budget.used(), bytes);
-        assert!(bytes <= 64 * ENTRY_BYTES + 256, "{bytes} bytes");
+        assert!(bytes <= limit, "{bytes} bytes of {limit}");
         let none = VerdictBudget::new(0);
         let mut t = NearVerdicts::default();
         t.keep(key(0), &[0; 4], None, &none);
