@@ -155,8 +155,8 @@ const ELEMENTS_PER_TRIANGLE: u64 = 8;
 /// Per element: tree node (map, links) besides its coefficients.
 const BYTES_PER_NODE: u64 = 64;
 /// The near links' kept verdicts per triangle (a generous figure: the 70k-triangle level keeps
-/// about half of it), within [`NEAR_VERDICT_BYTES`].
-const NEAR_VERDICT_BYTES_PER_TRIANGLE: u64 = 4096;
+/// about a third of it), within [`NEAR_VERDICT_BYTES`].
+const NEAR_VERDICT_BYTES_PER_TRIANGLE: u64 = 16384;
 
 /// A rough upper estimate of a solve's memory (bytes): per triangle, its share of scene, faces
 /// and visibility structure, plus `ELEMENTS_PER_TRIANGLE` elements each holding four coefficient
@@ -330,7 +330,7 @@ mod tests {
             estimated_memory_bytes(level, 3),
             level as u64 * per_triangle(3)
                 + FAR_VERDICT_BYTES as u64
-                + level as u64 * NEAR_VERDICT_BYTES_PER_TRIANGLE
+                + (level as u64 * NEAR_VERDICT_BYTES_PER_TRIANGLE).min(NEAR_VERDICT_BYTES as u64)
         );
         let city = 1_000_000;
         assert_eq!(

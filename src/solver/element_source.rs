@@ -27,7 +27,7 @@ use super::quadrature::{self, QuadPoint};
 use super::refine::Shot;
 use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
 use super::shot_record::SourcePath;
-use super::source::{PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
+use super::source::{KnownPoint, PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
 use crate::domain::{ElementRoot, ElementStatus};
@@ -609,18 +609,19 @@ impl Source for ElementSource<'_> {
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
-        known: Option<u64>,
+        known: Option<KnownPoint>,
     ) -> Option<PointIrradiance> {
-        let f = self.form_factor(x, n);
+        let f = known.map_or_else(|| self.form_factor(x, n), |k| k.form_factor);
         if f <= 0.0 {
             return None;
         }
+        let seen = known.map(|k| k.seen);
         if let Some(front) = self.front_rule(x, n) {
-            if let Some(out) = self.front_irradiance((x, n, f), ignore, &front, (rays, known)) {
+            if let Some(out) = self.front_irradiance((x, n, f), ignore, &front, (rays, seen)) {
                 return Some(out);
             }
         }
-        let seen = match (rays, known) {
+        let seen = match (rays, seen) {
             (Rays::AllPass, _) => ALL_VISIBLE,
             (_, Some(seen)) => seen,
             (Rays::Centre, None) => self.centre_verdict(x, ignore),

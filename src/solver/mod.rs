@@ -89,7 +89,7 @@ pub const FAR_VERDICT_BYTES: usize = 256 << 20;
 /// entry per link a receiver root took from an indirect shot (its points' ray masks, a few dozen
 /// bytes when each point's rays agree); beyond it links trace every shot. Counted in
 /// `job::estimated_memory_bytes`.
-pub const NEAR_VERDICT_BYTES: usize = 512 << 20;
+pub const NEAR_VERDICT_BYTES: usize = 1 << 30;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
 /// Stack of each thread of a pool that solves: a thread waiting for a stolen piece of a direct

@@ -7,10 +7,12 @@
 //! points, the source element's emitting rule points (or its centre; or, where a point's tangent
 //! plane cuts the element, its rule carried onto the part in front, `front_map.rs`), the two
 //! faces the rays ignore; and so does whether the oracle's verdict rays (corners, then spread pairs) disagree
-//! with the quadrature's. Each receiver root keeps, in its hierarchy, one entry per such link
-//! ([`LinkKey`]: shooter root, source path, receiver node, one ray per point or a packet):
-//! per receiver point its ray mask, and the verdict rays' answer once the oracle asked for it.
-//! A later shot reads them instead of tracing.
+//! with the quadrature's, and each point's form factor of the source element (exact, a contour
+//! integral over its rings, or the rule's sum). Each receiver root keeps, in its hierarchy, one
+//! entry per such link ([`LinkKey`]: shooter root, source path, receiver node, one ray per
+//! point or a packet): per receiver point its form factor and its ray mask, and the verdict
+//! rays' answer once the oracle asked for it. A later shot reads them instead of computing and
+//! tracing them.
 //!
 //! Invariants: a verdict read is the one the rays would give (the solve is the same with or
 //! without the entries: `tests/solver.rs`
@@ -22,6 +24,7 @@
 //! receiver's hierarchy, never changed but for the verdict rays' answer, which it gains once.
 
 use super::shot_record::SourcePath;
+use super::source::KnownPoint;
 use super::transfer::MAX_POINTS;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -47,19 +50,18 @@ impl LinkKey {
     }
 }
 
-/// What a link's rays said: per point, bit `k` of `visible` when every ray of point `k` passed;
-/// the masks of every point in `masks[mixed..]` when some point's rays disagree among
-/// themselves (`NO_MASKS` otherwise: each point's rays all passed, or all stopped).
+/// What a link's points saw: from `values[start..]`, each point's form factor (its bits), then,
+/// when some point's rays disagree among themselves (`mixed`), each point's mask; otherwise
+/// bit `k` of `visible` says whether every ray of point `k` passed.
 #[derive(Debug, Clone, Copy)]
 struct Entry {
     visible: u64,
-    mixed: u32,
+    start: u32,
     points: u8,
+    mixed: bool,
     /// The oracle's verdict rays: 0 not asked yet, 1 they agree, 2 they disagree.
     verdict_rays: u8,
 }
-
-const NO_MASKS: u32 = u32::MAX;
 
 /// A point's mask when every one of its rays passed (bits past its rays are never read).
 pub(super) const ALL_VISIBLE: u64 = u64::MAX;
@@ -67,36 +69,42 @@ pub(super) const ALL_VISIBLE: u64 = u64::MAX;
 /// Bytes a table entry takes, with the hash table's control byte.
 const ENTRY_BYTES: usize = std::mem::size_of::<(LinkKey, Entry)>() + 1;
 
-/// Bytes of a table holding `entries` entries and `masks` masks without growing: the hash
-/// table's buckets are about 8/7 of what it holds.
-fn table_bytes(entries: usize, masks: usize) -> usize {
-    entries * ENTRY_BYTES * 8 / 7 + masks * std::mem::size_of::<u64>()
+/// Bytes of a table holding `entries` entries and `values` form factors and masks without
+/// growing: the hash table's buckets are about 8/7 of what it holds.
+fn table_bytes(entries: usize, values: usize) -> usize {
+    entries * ENTRY_BYTES * 8 / 7 + values * std::mem::size_of::<u64>()
 }
 
 /// One receiver root's kept verdicts.
 #[derive(Debug, Clone, Default)]
 pub struct NearVerdicts {
     entries: HashMap<LinkKey, Entry>,
-    masks: Vec<u64>,
+    values: Vec<u64>,
 }
 
 /// A link's kept verdicts, read back.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct KnownVerdicts<'a> {
     entry: Entry,
-    masks: &'a [u64],
+    values: &'a [u64],
 }
 
 impl KnownVerdicts<'_> {
-    /// Point `k`'s ray mask (packing order of its rays, [`ALL_VISIBLE`] when all passed).
-    pub fn seen(&self, k: usize) -> u64 {
-        debug_assert!(k < usize::from(self.entry.points), "a point of the link");
-        if self.entry.mixed != NO_MASKS {
-            self.masks[self.entry.mixed as usize + k]
+    /// What point `k` saw: its ray mask (packing order of its rays, [`ALL_VISIBLE`] when all
+    /// passed) and its form factor (0 where nothing reached it).
+    pub fn point(&self, k: usize) -> KnownPoint {
+        let (start, points) = (self.entry.start as usize, usize::from(self.entry.points));
+        debug_assert!(k < points, "a point of the link");
+        let seen = if self.entry.mixed {
+            self.values[start + points + k]
         } else if self.entry.visible >> k & 1 == 1 {
             ALL_VISIBLE
         } else {
             0
+        };
+        KnownPoint {
+            seen,
+            form_factor: f64::from_bits(self.values[start + k]),
         }
     }
 
@@ -153,21 +161,22 @@ impl NearVerdicts {
     pub(super) fn known(&self, key: &LinkKey) -> Option<KnownVerdicts<'_>> {
         self.entries.get(key).map(|&entry| KnownVerdicts {
             entry,
-            masks: &self.masks,
+            values: &self.values,
         })
     }
 
-    /// Keeps what a link's rays said (`seen`: each point's mask, `ALL_VISIBLE` for a point all
-    /// of whose rays passed; `verdict_rays`: the oracle's answer, if it asked), within `budget`:
-    /// a new entry, or the verdict rays' answer for a kept one that lacked it.
+    /// Keeps what a link's points saw (`seen`: each point's mask, `ALL_VISIBLE` for a point all
+    /// of whose rays passed; `form_factors`: each point's, 0 where nothing reached it;
+    /// `verdict_rays`: the oracle's answer, if it asked), within `budget`: a new entry, or the
+    /// verdict rays' answer for a kept one that lacked it.
     pub(super) fn keep(
         &mut self,
         key: LinkKey,
-        seen: &[u64],
+        (seen, form_factors): (&[u64], &[f64]),
         verdict_rays: Option<bool>,
         budget: &VerdictBudget,
     ) {
-        debug_assert!(seen.len() <= MAX_POINTS.min(64));
+        debug_assert!(seen.len() <= MAX_POINTS.min(64) && form_factors.len() == seen.len());
         let answer = verdict_rays.map_or(0, |d| 1 + u8::from(d));
         if let Some(entry) = self.entries.get_mut(&key) {
             if entry.verdict_rays == 0 {
@@ -185,33 +194,24 @@ impl NearVerdicts {
         } else {
             capacity
         };
-        let masks_needed = self.masks.len() + if uniform { 0 } else { seen.len() };
-        let masks_after = if masks_needed > self.masks.capacity() {
-            (2 * self.masks.capacity()).max(masks_needed).max(4)
+        let values_needed = self.values.len() + seen.len() * if uniform { 1 } else { 2 };
+        let values_after = if values_needed > self.values.capacity() {
+            (2 * self.values.capacity()).max(values_needed).max(4)
         } else {
-            self.masks.capacity()
+            self.values.capacity()
         };
-        let reserved = table_bytes(entries_after, masks_after).saturating_sub(before);
+        let reserved = table_bytes(entries_after, values_after).saturating_sub(before);
+        // An offset past `u32` is not kept (some 32 GiB of one receiver's values).
+        let Ok(start) = u32::try_from(self.values.len()) else {
+            return;
+        };
         if !budget.reserve(reserved) {
             return;
         }
-        let mixed = if uniform {
-            NO_MASKS
-        } else {
-            // An offset that would reach `NO_MASKS` is not kept (some 32 GiB of one receiver's
-            // masks).
-            match u32::try_from(self.masks.len() + seen.len()) {
-                Ok(end) if end < NO_MASKS => {
-                    let start = self.masks.len() as u32;
-                    self.masks.extend_from_slice(seen);
-                    start
-                }
-                _ => {
-                    budget.settle(reserved, 0);
-                    return;
-                }
-            }
-        };
+        self.values.extend(form_factors.iter().map(|f| f.to_bits()));
+        if !uniform {
+            self.values.extend_from_slice(seen);
+        }
         let visible = seen
             .iter()
             .enumerate()
@@ -220,17 +220,18 @@ impl NearVerdicts {
             key,
             Entry {
                 visible,
-                mixed,
+                start,
                 points: seen.len() as u8,
+                mixed: !uniform,
                 verdict_rays: answer,
             },
         );
         budget.settle(reserved, self.bytes().saturating_sub(before));
     }
 
-    /// Bytes the table takes (about: the hash table's buckets, its control bytes, the masks).
+    /// Bytes the table takes (about: the hash table's buckets, its control bytes, the values).
     pub fn bytes(&self) -> usize {
-        table_bytes(self.entries.capacity(), self.masks.capacity())
+        table_bytes(self.entries.capacity(), self.values.capacity())
     }
 
     /// Frees the table (the solve is over: no shot reads it again).
@@ -247,28 +248,32 @@ mod tests {
         LinkKey::new(3, SourcePath::ROOT.child(2), node, false)
     }
 
-    /// Uniform and mixed masks read back as kept, per point; the verdict rays' answer is kept
-    /// once and never changed; other links are unknown.
+    /// Uniform and mixed masks and the form factors read back as kept, per point; the verdict
+    /// rays' answer is kept once and never changed; other links are unknown.
     #[test]
     fn verdicts_read_back_as_kept() {
         let budget = VerdictBudget::new(usize::MAX);
         let mut t = NearVerdicts::default();
         let uniform = [ALL_VISIBLE, 0, ALL_VISIBLE, ALL_VISIBLE];
         let mixed = [0b1011, ALL_VISIBLE, 0, 0b1];
-        t.keep(key(1), &uniform, None, &budget);
-        t.keep(key(2), &mixed, Some(true), &budget);
+        let (fa, fb) = ([0.25, 0.0, 1e-300, 0.5], [0.125, 0.3, 0.0, 0.7]);
+        t.keep(key(1), (&uniform, &fa), None, &budget);
+        t.keep(key(2), (&mixed, &fb), Some(true), &budget);
         let a = t.known(&key(1)).expect("kept");
         let b = t.known(&key(2)).expect("kept");
         for k in 0..4 {
-            assert_eq!(a.seen(k), uniform[k], "point {k}");
-            assert_eq!(b.seen(k), mixed[k], "point {k}");
+            assert_eq!(a.point(k).seen, uniform[k], "point {k}");
+            assert_eq!(b.point(k).seen, mixed[k], "point {k}");
+            assert_eq!(a.point(k).form_factor, fa[k], "point {k}");
+            assert_eq!(b.point(k).form_factor, fb[k], "point {k}");
         }
         assert_eq!(a.verdict_rays(), None);
         assert_eq!(b.verdict_rays(), Some(true));
-        t.keep(key(1), &[0; 4], Some(false), &budget);
-        t.keep(key(2), &[0; 4], Some(false), &budget);
+        t.keep(key(1), (&[0; 4], &[0.0; 4]), Some(false), &budget);
+        t.keep(key(2), (&[0; 4], &[0.0; 4]), Some(false), &budget);
         let a = t.known(&key(1)).expect("kept");
-        assert_eq!(a.seen(0), ALL_VISIBLE, "masks are never changed");
+        assert_eq!(a.point(0).seen, ALL_VISIBLE, "masks are never changed");
+        assert_eq!(a.point(0).form_factor, 0.25, "nor form factors");
         assert_eq!(a.verdict_rays(), Some(false), "gained once");
         assert_eq!(t.known(&key(2)).expect("kept").verdict_rays(), Some(true));
         assert!(t.known(&key(3)).is_none());
@@ -288,12 +293,12 @@ mod tests {
     /// new, and what was kept stays readable.
     #[test]
     fn tables_stay_within_the_budget() {
-        let limit = table_bytes(64, 32);
+        let limit = table_bytes(64, 64);
         let budget = VerdictBudget::new(limit);
         let mut tables = [NearVerdicts::default(), NearVerdicts::default()];
         for node in 0..1000 {
             let t = &mut tables[node % 2];
-            t.keep(key(node), &[0b10; 8], None, &budget);
+            t.keep(key(node), (&[0b10; 8], &[0.5; 8]), None, &budget);
         }
         let kept: usize = (0..1000)
             .filter(|&n| tables[n % 2].known(&key(n)).is_some())
@@ -304,7 +309,7 @@ mod tests {
         assert!(bytes <= limit, "{bytes} bytes of {limit}");
         let none = VerdictBudget::new(0);
         let mut t = NearVerdicts::default();
-        t.keep(key(0), &[0; 4], None, &none);
+        t.keep(key(0), (&[0; 4], &[0.0; 4]), None, &none);
         assert!(t.known(&key(0)).is_none());
     }
 }

@@ -253,7 +253,8 @@ impl ShotContext<'_> {
             oracle::evaluate(self, &source, &receiver, &received, weight, rays)
         };
         if let Some(key) = key {
-            let seen = &received.seen[..received.points];
+            let points = received.points;
+            let seen = (&received.seen[..points], &received.form_factors[..points]);
             let verdict_rays = received.verdict_rays.get();
             rcv.near_verdicts
                 .keep(key, seen, verdict_rays, self.near_verdicts);

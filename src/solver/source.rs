@@ -47,6 +47,15 @@ pub(super) enum Rays {
     Centre,
 }
 
+/// What a receiver point saw of an element source when a shot of the same root evaluated it
+/// before (`near_verdicts.rs`): its rays' verdicts ([`PointIrradiance::seen`]) and the source's
+/// form factor ([`PointIrradiance::form_factor`]; 0 where nothing reached it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct KnownPoint {
+    pub seen: u64,
+    pub form_factor: f64,
+}
+
 /// What a source delivers at one receiver point.
 #[derive(Debug, Clone, Copy, Default)]
 pub(super) struct PointIrradiance {
@@ -95,15 +104,15 @@ pub(super) trait Source {
     /// faces `ignore` ([`Source::ignored_faces`]); `None` when nothing reaches it unoccluded
     /// (behind the source, outside a spot's cone).
     /// `rays`: trace the shadow rays, take them all as passing, or cast one per point to the
-    /// source's centre ([`Rays`]); `known`: what they said when a shot traced them before
-    /// ([`PointIrradiance::seen`], `near_verdicts.rs`), read instead of tracing.
+    /// source's centre ([`Rays`]); `known`: what they said and the form factor when a shot
+    /// evaluated the point before (`near_verdicts.rs`), read instead of traced and computed.
     fn irradiance_at(
         &self,
         x: DVec3,
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
-        known: Option<u64>,
+        known: Option<KnownPoint>,
     ) -> Option<PointIrradiance>;
 
     /// The unoccluded irradiance at `x` of the source's mean (the oracle's corner probes).
@@ -200,7 +209,7 @@ impl Source for LightSource<'_> {
         n: DVec3,
         ignore: [u32; 2],
         rays: Rays,
-        known: Option<u64>,
+        known: Option<KnownPoint>,
     ) -> Option<PointIrradiance> {
         let (e, target) = unoccluded_irradiance(self.light, x, n, self.far);
         if mean_rgb_sum(e) <= 0.0 {
@@ -211,7 +220,7 @@ impl Source for LightSource<'_> {
         let visible = rays == Rays::AllPass
             || known.map_or_else(
                 || self.visibility.visible(x, target, ignore),
-                |m| m & 1 == 1,
+                |k| k.seen & 1 == 1,
             );
         Some(PointIrradiance {
             e: if visible { e } else { [0.0; 3] },

@@ -48,6 +48,9 @@ pub(super) struct Received {
     /// (`near_verdicts.rs`).
     pub seen: [u64; MAX_POINTS],
     pub verdict_rays: Cell<Option<bool>>,
+    /// Each point's form factor of the source (0 where nothing reached it), kept with the rays'
+    /// verdicts.
+    pub form_factors: [f64; MAX_POINTS],
 }
 
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
@@ -82,6 +85,7 @@ pub(super) fn receive(
         touching: 0,
         all_pass: rays == Rays::Trace,
         seen: [0; MAX_POINTS],
+        form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
     for k in 0..out.points {
@@ -89,7 +93,7 @@ pub(super) fn receive(
             Some(q) => receiving_point(root, &receiver.patch, receiver.cover, k, q.st),
             None => receiver.check_point(k - nk),
         };
-        let Some(p) = source.irradiance_at(x, root.normal, ignore, rays, known.map(|v| v.seen(k)))
+        let Some(p) = source.irradiance_at(x, root.normal, ignore, rays, known.map(|v| v.point(k)))
         else {
             // No ray sampled what this point's neighbours in a child may see.
             out.all_pass = false;
@@ -98,6 +102,7 @@ pub(super) fn receive(
         out.all_pass &= p.any_visible && !p.any_blocked;
         out.e[k] = p.e;
         out.seen[k] = p.seen;
+        out.form_factors[k] = p.form_factor;
         let Some(q) = rule.get(k) else {
             continue;
         };

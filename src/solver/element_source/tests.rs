@@ -288,7 +288,10 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
             DVec3::X,
             source.ignored_faces(1),
             Rays::Trace,
-            Some(got.seen),
+            Some(KnownPoint {
+                seen: got.seen,
+                form_factor: got.form_factor,
+            }),
         )
         .expect("in front");
     assert_eq!(visibility.rays_traced(), before);
