@@ -41,10 +41,10 @@ const MAX_FACING_RECEIVERS: usize = 1024;
 /// refined near it; docs/performance-notes.md, "What a shot costs against the power it sends").
 /// Chosen on zdm2 and checked on the scaling benchmark's other scenes, so that the ETA stays
 /// within 2 of the time left on each (the same notes, "The indirect phase priced along a
-/// foreseen cost curve" and "Near links' verdicts kept between a root's shots"; a change in
+/// foreseen cost curve" and "Form factors kept with the near links' verdicts"; a change in
 /// what an indirect shot costs moves them): the ETA corrects the level as the indirect shots
 /// come, the curve's shape is what it relies on.
-const RAYS_PER_RECEIVER: f64 = 2.5;
+const RAYS_PER_RECEIVER: f64 = 2.0;
 const RAYS_PER_POWER: f64 = 7000.0;
 /// Nats between the points of the cost curve, at least.
 const CURVE_STEP: f64 = 0.01;

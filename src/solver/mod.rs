@@ -86,9 +86,9 @@ pub const DIRECT_DETAIL_TIGHTENING: f64 = 4.0;
 /// `job::estimated_memory_bytes`.
 pub const FAR_VERDICT_BYTES: usize = 256 << 20;
 /// What the near links' kept shadow-ray verdicts may take by default (`near_verdicts.rs`): one
-/// entry per link a receiver root took from an indirect shot (its points' ray masks, a few dozen
-/// bytes when each point's rays agree); beyond it links trace every shot. Counted in
-/// `job::estimated_memory_bytes`.
+/// entry per link a receiver root took from an indirect shot (its points' form factors and ray
+/// masks: 8 bytes a point, 16 where some point's rays disagree among themselves); beyond it
+/// links trace every shot. Counted in `job::estimated_memory_bytes`.
 pub const NEAR_VERDICT_BYTES: usize = 1 << 30;
 /// Safety limit on shots (a closed scene of rho = 1 never converges).
 pub const DEFAULT_MAX_ITERATIONS: u64 = 1_000_000;
