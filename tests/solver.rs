@@ -793,9 +793,16 @@ fn tiled_room() -> Vec<u8> {
             );
         }
     }
+    lamp_and_pillars(&mut b, lamp, grey, 1.9);
+    b.to_glb()
+}
+
+/// A small square lamp facing down at height `z` over the middle of a 4 m room, and two pillars
+/// (of `grey`) beside it that shadow the floor.
+fn lamp_and_pillars(b: &mut SceneBuilder, lamp: u32, grey: u32, z: f64) {
     b.quad(
         lamp,
-        DVec3::new(1.9, 1.9, 1.9),
+        DVec3::new(1.9, 1.9, z),
         DVec3::Y * 0.2,
         DVec3::X * 0.2,
         1,
@@ -808,7 +815,6 @@ fn tiled_room() -> Vec<u8> {
             1,
         );
     }
-    b.to_glb()
 }
 
 /// A closed grey room (six walls of one quad each, rho 0.8) lit by a small ceiling lamp, with
@@ -820,21 +826,7 @@ fn pillar_room() -> Vec<u8> {
     let grey = b.material([0.8; 3], [0.0; 3], false);
     let lamp = b.material([0.0; 3], [5.0; 3], false);
     b.inward_box([grey; 6], DVec3::ZERO, DVec3::new(4.0, 4.0, 2.0), 1);
-    b.quad(
-        lamp,
-        DVec3::new(1.9, 1.9, 1.99),
-        DVec3::Y * 0.2,
-        DVec3::X * 0.2,
-        1,
-    );
-    for x in [1.2, 2.7] {
-        b.inward_box(
-            [grey; 6],
-            DVec3::new(x, 1.7, 0.1),
-            DVec3::new(x + 0.2, 1.9, 1.8),
-            1,
-        );
-    }
+    lamp_and_pillars(&mut b, lamp, grey, 1.99);
     // The table: [0.3, 3.7]^2 less [1.5, 2.5]^2 at z = 0.05, facing up, in eight triangles.
     let z = 0.05;
     let at = |x: f64, y: f64| DVec3::new(x, y, z);

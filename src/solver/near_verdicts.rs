@@ -14,7 +14,8 @@
 //! rays' answer once the oracle asked for it. A later shot reads them instead of computing and
 //! tracing them.
 //!
-//! Invariants: a verdict read is the one the rays would give (the solve is the same with or
+//! Invariants: a verdict or form factor read is the one the rays or the integral would give
+//! (the solve is the same with or
 //! without the entries: `tests/solver.rs`
 //! `near_link_verdicts_kept_between_shots_change_no_light_and_save_rays`); the entries of all
 //! receivers take about at most the budget (`SolverParams::near_verdict_bytes`): a table
@@ -208,6 +209,8 @@ impl NearVerdicts {
         if !budget.reserve(reserved) {
             return;
         }
+        // One growth at most, as reserved.
+        self.values.reserve(values_needed - self.values.len());
         self.values.extend(form_factors.iter().map(|f| f.to_bits()));
         if !uniform {
             self.values.extend_from_slice(seen);
@@ -289,8 +292,8 @@ mod tests {
         assert_eq!(budget.used(), t.bytes());
     }
 
-    /// Tables grow only while the budget holds their grown size; a full budget keeps nothing
-    /// new, and what was kept stays readable.
+    /// Tables grow only while the budget holds their grown size (uniform and mixed entries,
+    /// of several sizes); a full budget keeps nothing new, and what was kept stays readable.
     #[test]
     fn tables_stay_within_the_budget() {
         let limit = table_bytes(64, 64);
@@ -298,7 +301,11 @@ mod tests {
         let mut tables = [NearVerdicts::default(), NearVerdicts::default()];
         for node in 0..1000 {
             let t = &mut tables[node % 2];
-            t.keep(key(node), (&[0b10; 8], &[0.5; 8]), None, &budget);
+            let points = 1 + node % 13;
+            let mask = if node % 3 == 0 { ALL_VISIBLE } else { 0b10 };
+            let (seen, ff) = ([mask; 13], [0.5; 13]);
+            t.keep(key(node), (&seen[..points], &ff[..points]), None, &budget);
+            assert!(budget.used() <= limit, "{} of {limit}", budget.used());
         }
         let kept: usize = (0..1000)
             .filter(|&n| tables[n % 2].known(&key(n)).is_some())

@@ -299,6 +299,10 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
         (again.e, again.any_visible, again.any_blocked, again.seen),
         (got.e, got.any_visible, got.any_blocked, got.seen)
     );
+    assert_eq!(
+        (again.form_factor, again.unoccluded, again.source_side_err),
+        (got.form_factor, got.unoccluded, got.source_side_err)
+    );
     let (exact, unoccluded) = fine_grid(&roots[0], |st| {
         let mut phi = [0.0; MAX_FUNCTIONS];
         basis.eval(st, &mut phi[..n]);
