@@ -75,13 +75,7 @@ impl ElementSource<'_> {
             return 0;
         }
         let centre = *self.centre_stand_in.get_or_init(|| self.centre_stand_in());
-        let visibility = self.shot.visibility;
-        visibility.count_rays(1);
-        if visibility.visible_from(x, &[centre], ignore) & 1 == 1 {
-            u64::MAX
-        } else {
-            0
-        }
+        super::trace_packet(self.shot.visibility, x, &[centre], ignore)
     }
 
     /// The emitting rule points' weighted mean, on the face: the mean itself when the face

@@ -261,16 +261,14 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
     let hierarchy = Hierarchy::new(n);
     let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, false);
     let source = shot.source(&element, [1.0; 3]).expect("an emitting source");
+    let under_the_eave = |known| {
+        let ignore = source.ignored_faces(1);
+        source
+            .irradiance_at(UNDER_THE_EAVE, DVec3::X, ignore, Rays::Trace, known)
+            .expect("in front")
+    };
     let rays_before = visibility.rays_traced();
-    let got = source
-        .irradiance_at(
-            UNDER_THE_EAVE,
-            DVec3::X,
-            source.ignored_faces(1),
-            Rays::Trace,
-            None,
-        )
-        .expect("in front");
+    let got = under_the_eave(None);
     assert_eq!(
         visibility.rays_traced() - rays_before,
         rules.of(Shape::Parallelogram).len() as u64
@@ -282,18 +280,10 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
     // What the rays said, read back by a later shot (`near_verdicts.rs`): the same light, and no
     // ray traced.
     let before = visibility.rays_traced();
-    let again = source
-        .irradiance_at(
-            UNDER_THE_EAVE,
-            DVec3::X,
-            source.ignored_faces(1),
-            Rays::Trace,
-            Some(KnownPoint {
-                seen: got.seen,
-                form_factor: got.form_factor,
-            }),
-        )
-        .expect("in front");
+    let again = under_the_eave(Some(KnownPoint {
+        seen: got.seen,
+        form_factor: got.form_factor,
+    }));
     assert_eq!(visibility.rays_traced(), before);
     assert_eq!(
         (again.e, again.any_visible, again.any_blocked, again.seen),
