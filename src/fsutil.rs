@@ -64,11 +64,12 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
 mod tests {
     use super::*;
 
-    fn scratch(name: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("wavrad-fsutil-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
+    /// A fresh directory, removed when the test ends.
+    fn scratch(name: &str) -> tempfile::TempDir {
+        tempfile::Builder::new()
+            .prefix(&format!("wavrad-fsutil-{name}-"))
+            .tempdir()
+            .unwrap()
     }
 
     fn entries(dir: &Path) -> Vec<String> {
@@ -82,17 +83,19 @@ mod tests {
 
     #[test]
     fn a_write_replaces_the_target_and_leaves_no_temporary() {
-        let dir = scratch("replace");
+        let scratch = scratch("replace");
+        let dir = scratch.path();
         let path = dir.join("a.json");
         write_atomic(&path, b"first").unwrap();
         write_atomic(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
-        assert_eq!(entries(&dir), ["a.json"]);
+        assert_eq!(entries(dir), ["a.json"]);
     }
 
     #[test]
     fn a_failed_write_leaves_the_target_untouched() {
-        let dir = scratch("failed");
+        let scratch = scratch("failed");
+        let dir = scratch.path();
         let path = dir.join("a.json");
         write_atomic(&path, b"kept").unwrap();
         let err = write_atomic_with(&path, |tmp| {
@@ -102,6 +105,6 @@ mod tests {
         .unwrap_err();
         assert_eq!(err.to_string(), "disk full");
         assert_eq!(std::fs::read(&path).unwrap(), b"kept");
-        assert_eq!(entries(&dir), ["a.json"]);
+        assert_eq!(entries(dir), ["a.json"]);
     }
 }

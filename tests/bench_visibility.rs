@@ -2,7 +2,7 @@
 //! solver's own BVH (bounding faces left out, as in a solve) equals a brute-force count over every
 //! triangle of the scene, on small scenes of tests/data; `--generate` is reproducible.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use wavrad::bench::visibility::{brute_force_occluded, parse_segments};
 
@@ -17,17 +17,19 @@ fn wavrad(args: &[&str]) -> std::process::Output {
         .expect("wavrad runs")
 }
 
-fn temp(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("wavrad-bench-vis-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    dir.join(name)
+/// A fresh directory for one test's files, removed when the test ends.
+fn scratch() -> tempfile::TempDir {
+    tempfile::Builder::new()
+        .prefix("wavrad-bench-vis-")
+        .tempdir()
+        .unwrap()
 }
 
 /// Generates `n` segments on `scene`, traces them with 1 and 2 threads, and compares the occluded
 /// counts with the brute force; returns (occluded, segments).
-fn check(scene: &Path, n: usize, name: &str) -> (usize, usize) {
+fn check(scene: &Path, dir: &Path, n: usize, name: &str) -> (usize, usize) {
     let scene_arg = scene.to_str().unwrap();
-    let file = temp(&format!("{name}.json"));
+    let file = dir.join(format!("{name}.json"));
     let file_arg = file.to_str().unwrap();
     let n_arg = n.to_string();
     let made = wavrad(&[
@@ -42,7 +44,7 @@ fn check(scene: &Path, n: usize, name: &str) -> (usize, usize) {
     assert!(made.status.success(), "{made:?}");
     let bytes = std::fs::read(&file).unwrap();
     // The same seed makes the same file.
-    let again = temp(&format!("{name}-again.json"));
+    let again = dir.join(format!("{name}-again.json"));
     let made = wavrad(&[
         "bench",
         "visibility",
@@ -86,13 +88,15 @@ fn check(scene: &Path, n: usize, name: &str) -> (usize, usize) {
 #[test]
 fn occluded_counts_equal_a_brute_force_count_over_every_triangle() {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
+    let scratch = scratch();
+    let dir = scratch.path();
     // A closed empty room: its walls bound it (left out of the BVH) and occlude nothing.
-    let (occluded, _) = check(&data.join("analytic/cube_onelight.glb"), 5_000, "cube");
+    let (occluded, _) = check(&data.join("analytic/cube_onelight.glb"), dir, 5_000, "cube");
     assert_eq!(occluded, 0);
     // A room cluttered with boxes.
-    let cluttered = temp("cluttered.glb");
+    let cluttered = dir.join("cluttered.glb");
     std::fs::write(&cluttered, cluttered_scene(3)).unwrap();
-    let (occluded, n) = check(&cluttered, 20_000, "cluttered");
+    let (occluded, n) = check(&cluttered, dir, 20_000, "cluttered");
     assert!(
         occluded > n / 50 && occluded < n,
         "{occluded} of {n}: a mix"
@@ -100,6 +104,7 @@ fn occluded_counts_equal_a_brute_force_count_over_every_triangle() {
     // A game level: thousands of faces, many occluded segments.
     let (occluded, n) = check(
         &data.join("redeclipse_dutility/redeclipse_dutility_lit.glb"),
+        dir,
         2_000,
         "dutility",
     );
@@ -112,7 +117,8 @@ fn occluded_counts_equal_a_brute_force_count_over_every_triangle() {
 #[test]
 fn bad_segments_and_options_are_refused() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/analytic/furnace.glb");
-    let bad = temp("bad.json");
+    let scratch = scratch();
+    let bad = scratch.path().join("bad.json");
     std::fs::write(&bad, "[[1, 2, 3]]").unwrap();
     let run = wavrad(&[
         "bench",

@@ -20,12 +20,16 @@ export async function launch(options = {}) {
     ],
     ...options,
   });
-  context.on('close', () => {
+  const remove = () => {
     try {
       rmSync(userDataDir, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 });
     } catch {
-      // Chromium may still be writing its profile; a temporary directory left behind is harmless.
+      // Chromium may still be writing its profile: the exit handler tries again.
     }
-  });
+  };
+  context.on('close', remove);
+  // Chromium can write its profile after the context's close event: once the script ends, the
+  // browser is gone and the profile is removed for good.
+  process.once('exit', remove);
   return context;
 }
