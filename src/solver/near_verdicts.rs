@@ -293,7 +293,8 @@ mod tests {
     }
 
     /// Tables grow only while the budget holds their grown size (uniform and mixed entries,
-    /// of several sizes); a full budget keeps nothing new, and what was kept stays readable.
+    /// of several sizes), the values once per entry at most, to what was reserved; a full
+    /// budget keeps nothing new, and what was kept stays readable.
     #[test]
     fn tables_stay_within_the_budget() {
         let limit = table_bytes(64, 64);
@@ -304,8 +305,16 @@ mod tests {
             let points = 1 + node % 13;
             let mask = if node % 3 == 0 { ALL_VISIBLE } else { 0b10 };
             let (seen, ff) = ([mask; 13], [0.5; 13]);
+            let capacity = t.values.capacity();
             t.keep(key(node), (&seen[..points], &ff[..points]), None, &budget);
             assert!(budget.used() <= limit, "{} of {limit}", budget.used());
+            // The values grew once at most, to the size `keep` reserved.
+            let reserved = (2 * capacity).max(t.values.len()).max(4);
+            assert!(
+                t.values.capacity() <= reserved.max(capacity),
+                "node {node}: {capacity} -> {} values, {reserved} reserved",
+                t.values.capacity()
+            );
         }
         let kept: usize = (0..1000)
             .filter(|&n| tables[n % 2].known(&key(n)).is_some())
