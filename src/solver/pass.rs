@@ -36,6 +36,8 @@ use std::time::Instant;
 /// (the plan over every root, starting and ending a parallel loop, its last receivers) are paid
 /// once for all of them.
 const PASS_MAX: usize = 8;
+// The plan keeps each root's far links to a pass's shooters as the bits of a `u8`.
+const _: () = assert!(PASS_MAX <= u8::BITS as usize);
 
 /// A root joins the pass of the root with the most unshot power when it holds at least this
 /// share of that power (the pass keeps close to the order of shots one at a time).
@@ -224,26 +226,30 @@ pub(super) fn shoot(
         .collect();
     // Per root and shooter, what it would receive with no occluder (-1 when not visited: it
     // does not face the shooter, or shoots in this pass): its cost grows with it over the
-    // threshold (links under a soft shadow), and its reflectance sends it back.
-    let received: Vec<[f64; PASS_MAX]> = hierarchies
+    // threshold (links under a soft shadow), and its reflectance sends it back. Beside it, bit
+    // `j` set: the root takes shooter `j`'s light as one far link ([`takes_far_link`], decided
+    // here once for the plan and the loop).
+    let (received, far_links): (Vec<[f64; PASS_MAX]>, Vec<u8>) = hierarchies
         .par_iter()
         .enumerate()
         .map(|(ri, h)| {
             let mut p = [-1.0; PASS_MAX];
+            let mut far_bits = 0u8;
             if h.nodes.is_empty() {
-                return p;
+                return (p, far_bits);
             }
             for (j, t) in taken.iter().enumerate() {
                 let (sroot, ssphere) = (&roots[t.index], &ctx.spheres[t.index]);
                 let (root, sphere) = (&roots[ri], &ctx.spheres[ri]);
                 if ri != t.index && faces_each_other(sroot, ssphere, root, sphere, facing_eps) {
                     let far = takes_far_link(power_bounds[j], ssphere, sphere, ctx.threshold);
+                    far_bits |= u8::from(far) << j;
                     p[j] = unoccluded_received(ctx, t.index, t.power, ri, far);
                 }
             }
-            p
+            (p, far_bits)
         })
-        .collect();
+        .unzip();
     let visited = |ri: usize| received[ri][..k].iter().any(|&p| p >= 0.0);
     let receivers = (0..roots.len()).filter(|&ri| visited(ri)).count() as u64;
     let weight = |p: f64| {
@@ -338,7 +344,7 @@ pub(super) fn shoot(
                                     far_sources[j].as_ref(),
                                     far_verdicts.table(t.index),
                                 ),
-                                power_bounds[j],
+                                far_links[ri] >> j & 1 == 1,
                                 received,
                                 ri,
                                 h,
@@ -395,11 +401,12 @@ pub(super) fn shoot(
 /// Receivers a piece of a pass's parallel loop takes together, shooter by shooter.
 const PASS_CHUNK: usize = 32;
 
-/// Receiver root `ri` (tree `h`) takes one shooter's light: as one far link when its whole share
-/// is within the threshold (`far_field.rs`, `power_bound` the shooter's bound; its ray's verdict
-/// read from the shooter's table when an earlier shot traced it, `far_verdicts.rs`), else refined
-/// link by link (and judged on its nodes' sums); `received` is the plan's estimate of its share
-/// with no occluder. Whether it took light without a push-pull pending (a far link's constant).
+/// Receiver root `ri` (tree `h`) takes one shooter's light: as one far link when `far` (the
+/// plan's [`takes_far_link`]: its whole share is within the threshold, `far_field.rs`; its ray's
+/// verdict read from the shooter's table when an earlier shot traced it, `far_verdicts.rs`), else
+/// refined link by link (and judged on its nodes' sums); `received` is the plan's estimate of its
+/// share with no occluder. Whether it took light without a push-pull pending (a far link's
+/// constant).
 fn receive_one(
     ctx: &ShotContext,
     (shot, shooter, far_source, verdicts): (
@@ -408,7 +415,7 @@ fn receive_one(
         Option<&ElementSource>,
         Option<&VerdictTable>,
     ),
-    power_bound: f64,
+    far: bool,
     received: f64,
     ri: usize,
     h: &mut Hierarchy,
@@ -416,7 +423,7 @@ fn receive_one(
 ) -> bool {
     let roots = ctx.roots;
     let (s, r) = (&ctx.spheres[shooter.index], &ctx.spheres[ri]);
-    if takes_far_link(power_bound, s, r, ctx.threshold) {
+    if far {
         let verdict = verdicts.map(|v| (v, ri));
         let e = far_source
             .and_then(|fs| far_field::far_irradiance(fs, &roots[ri], ctx.link_points[ri], verdict));
