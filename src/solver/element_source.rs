@@ -368,20 +368,22 @@ impl<'s> ElementSource<'s> {
             * self.alpha[l]
     }
 
+    /// The emitting rule points seen in front of `x` (normal `n`), in the rule's order: each
+    /// index and its positive [`ElementSource::point_term`], the terms
+    /// [`ElementSource::with_verdicts`] sums.
+    fn front_terms(&self, x: DVec3, n: DVec3) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.rule
+            .iter()
+            .enumerate()
+            .filter(|&(l, _)| self.alpha[l] > 0.0)
+            .map(move |(l, ql)| (l, self.point_term(l, ql.weight, x, n)))
+            .filter(|&(_, kxy)| kxy > 0.0)
+    }
+
     /// The rule's sum of the kernel from `x` over the emitting points (the positive terms
     /// [`ElementSource::with_verdicts`] sums).
     fn rule_form_factor(&self, x: DVec3, n: DVec3) -> f64 {
-        let mut sum = 0.0;
-        for (l, ql) in self.rule.iter().enumerate() {
-            if self.alpha[l] <= 0.0 {
-                continue;
-            }
-            let kxy = self.point_term(l, ql.weight, x, n);
-            if kxy > 0.0 {
-                sum += kxy;
-            }
-        }
-        sum
+        self.front_terms(x, n).fold(0.0, |sum, (_, kxy)| sum + kxy)
     }
 
     /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from

@@ -99,16 +99,10 @@ impl ElementSource<'_> {
     /// over the points.
     pub(super) fn rule_sums(&self, x: DVec3, n: DVec3) -> (f64, Rgb) {
         let (mut f, mut e) = (0.0, [0.0; 3]);
-        for (l, ql) in self.rule.iter().enumerate() {
-            if self.alpha[l] <= 0.0 {
-                continue;
-            }
-            let kxy = self.point_term(l, ql.weight, x, n);
-            if kxy > 0.0 {
-                f += kxy;
-                for ch in 0..3 {
-                    e[ch] += kxy * self.radiosity[l][ch];
-                }
+        for (l, kxy) in self.front_terms(x, n) {
+            f += kxy;
+            for ch in 0..3 {
+                e[ch] += kxy * self.radiosity[l][ch];
             }
         }
         (f, e)
