@@ -83,8 +83,8 @@ mod tests {
 
     #[test]
     fn a_write_replaces_the_target_and_leaves_no_temporary() {
-        let scratch = scratch("replace");
-        let dir = scratch.path();
+        let tmp = scratch("replace");
+        let dir = tmp.path();
         let path = dir.join("a.json");
         write_atomic(&path, b"first").unwrap();
         write_atomic(&path, b"second").unwrap();
@@ -94,8 +94,8 @@ mod tests {
 
     #[test]
     fn a_failed_write_leaves_the_target_untouched() {
-        let scratch = scratch("failed");
-        let dir = scratch.path();
+        let tmp = scratch("failed");
+        let dir = tmp.path();
         let path = dir.join("a.json");
         write_atomic(&path, b"kept").unwrap();
         let err = write_atomic_with(&path, |tmp| {

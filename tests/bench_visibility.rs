@@ -88,8 +88,8 @@ fn check(scene: &Path, dir: &Path, n: usize, name: &str) -> (usize, usize) {
 #[test]
 fn occluded_counts_equal_a_brute_force_count_over_every_triangle() {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data");
-    let scratch = scratch();
-    let dir = scratch.path();
+    let tmp = scratch();
+    let dir = tmp.path();
     // A closed empty room: its walls bound it (left out of the BVH) and occlude nothing.
     let (occluded, _) = check(&data.join("analytic/cube_onelight.glb"), dir, 5_000, "cube");
     assert_eq!(occluded, 0);
@@ -117,8 +117,8 @@ fn occluded_counts_equal_a_brute_force_count_over_every_triangle() {
 #[test]
 fn bad_segments_and_options_are_refused() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/analytic/furnace.glb");
-    let scratch = scratch();
-    let bad = scratch.path().join("bad.json");
+    let tmp = scratch();
+    let bad = tmp.path().join("bad.json");
     std::fs::write(&bad, "[[1, 2, 3]]").unwrap();
     let run = wavrad(&[
         "bench",

@@ -368,9 +368,9 @@ impl<'s> ElementSource<'s> {
             * self.alpha[l]
     }
 
-    /// The emitting rule points seen in front of `x` (normal `n`), in the rule's order: each
+    /// The emitting rule points lying in front of `x` (normal `n`), in the rule's order: each
     /// index and its positive [`ElementSource::point_term`], the terms
-    /// [`ElementSource::with_verdicts`] sums.
+    /// [`ElementSource::with_verdicts`] sums (whatever their rays' verdicts).
     fn front_terms(&self, x: DVec3, n: DVec3) -> impl Iterator<Item = (usize, f64)> + '_ {
         self.rule
             .iter()

@@ -2,7 +2,8 @@
 //! shot alone, else the root with the most unshot power and roots of at least half its power that
 //! face none of the pass's others), the plan over the receivers (what each would get with no
 //! occluder: the cost weights of the progress and the ETA, and at the first direct shot the
-//! indirect phase foreseen from it, `forecast_inputs.rs`), and the parallel loop in which every
+//! indirect phase foreseen from it, `forecast_inputs.rs`; and which shooters it takes as one far
+//! link, decided there once for the loop), and the parallel loop in which every
 //! receiver takes each shooter's light (a far link, or links refined and judged on their nodes'
 //! sums).
 //!
@@ -227,7 +228,7 @@ pub(super) fn shoot(
     // Per root and shooter, what it would receive with no occluder (-1 when not visited: it
     // does not face the shooter, or shoots in this pass): its cost grows with it over the
     // threshold (links under a soft shadow), and its reflectance sends it back. Beside it, bit
-    // `j` set: the root takes shooter `j`'s light as one far link ([`takes_far_link`], decided
+    // `j` set: the root takes shooter `j`'s light as one far link (`takes_far_link`, decided
     // here once for the plan and the loop).
     let (received, far_links): (Vec<[f64; PASS_MAX]>, Vec<u8>) = hierarchies
         .par_iter()

@@ -7,7 +7,8 @@ import { tmpdir } from 'node:os';
 import { join } from 'node:path';
 
 /// A persistent context (its first page is `context.pages()[0]`); `options` are playwright's
-/// launch options added to these. Closing it removes the profile.
+/// launch options added to these. Closing it removes the profile (again when the script exits,
+/// for what Chromium wrote after the close).
 export async function launch(options = {}) {
   const userDataDir = mkdtempSync(join(tmpdir(), 'wavrad-chromium-'));
   const context = await chromium.launchPersistentContext(userDataDir, {
@@ -24,12 +25,13 @@ export async function launch(options = {}) {
     try {
       rmSync(userDataDir, { recursive: true, force: true, maxRetries: 5, retryDelay: 100 });
     } catch {
-      // Chromium may still be writing its profile: the exit handler tries again.
+      // Chromium may still be writing its profile: a directory left in the system's temporary
+      // directory is harmless (the exit handler tries again after a close).
     }
   };
   context.on('close', remove);
-  // Chromium can write its profile after the context's close event: once the script ends, the
-  // browser is gone and the profile is removed for good.
+  // Chromium can write its profile after the context's close event: try again when the script
+  // exits.
   process.once('exit', remove);
   return context;
 }
