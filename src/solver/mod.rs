@@ -10,12 +10,12 @@
 //! pass's others, until `unshot_ratio = unshot power / direct power received <= target`. Links
 //! are not cached: each transfer is recomputed when its source shoots again (memory stays
 //! proportional to elements); only what depends on geometry alone, what their shadow rays said
-//! and a near link's form factors, is kept between a root's shots, each within a fixed budget: a far link's verdict per
-//! pair of roots, two bits each (`far_verdicts.rs`, [`FAR_VERDICT_BYTES`]), and a near link's
-//! ray masks and its points' form factors per pair of source element and receiver node
-//! (`near_verdicts.rs`, [`NEAR_VERDICT_BYTES`]). Receivers
-//! of one pass are processed in parallel (rayon); the shooters are read-only during it, and
-//! refined only virtually (sub-elements computed by push, not stored).
+//! and a near link's form factors, is kept between a root's shots, each within a fixed budget:
+//! a far link's verdict per pair of roots, two bits each (`far_verdicts.rs`,
+//! [`FAR_VERDICT_BYTES`]), and a near link's ray masks and its points' form factors per pair of
+//! source element and receiver node (`near_verdicts.rs`, [`NEAR_VERDICT_BYTES`]). Receivers of
+//! one pass are processed in parallel (rayon); the shooters are read-only during it, and refined
+//! only virtually (sub-elements computed by push, not stored).
 
 pub(crate) mod basis;
 pub(crate) mod cover;

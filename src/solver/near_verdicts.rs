@@ -15,8 +15,7 @@
 //! tracing them.
 //!
 //! Invariants: a verdict or form factor read is the one the rays or the integral would give
-//! (the solve is the same with or
-//! without the entries: `tests/solver.rs`
+//! (the solve is the same with or without the entries: `tests/solver.rs`
 //! `near_link_verdicts_kept_between_shots_change_no_light_and_save_rays`); the entries of all
 //! receivers take about at most the budget (`SolverParams::near_verdict_bytes`): a table
 //! reserves its grown size from the shared [`VerdictBudget`] before it grows, and links it has
@@ -74,6 +73,16 @@ const ENTRY_BYTES: usize = std::mem::size_of::<(LinkKey, Entry)>() + 1;
 /// growing: the hash table's buckets are about 8/7 of what it holds.
 fn table_bytes(entries: usize, values: usize) -> usize {
     entries * ENTRY_BYTES * 8 / 7 + values * std::mem::size_of::<u64>()
+}
+
+/// The capacity a `Vec<u64>` of `capacity` has once it holds `needed` values, grown by one
+/// `reserve` as std grows it (double, or what is needed when more, at least 4).
+fn grown_capacity(capacity: usize, needed: usize) -> usize {
+    if needed > capacity {
+        (2 * capacity).max(needed).max(4)
+    } else {
+        capacity
+    }
 }
 
 /// One receiver root's kept verdicts.
@@ -196,11 +205,7 @@ impl NearVerdicts {
             capacity
         };
         let values_needed = self.values.len() + seen.len() * if uniform { 1 } else { 2 };
-        let values_after = if values_needed > self.values.capacity() {
-            (2 * self.values.capacity()).max(values_needed).max(4)
-        } else {
-            self.values.capacity()
-        };
+        let values_after = grown_capacity(self.values.capacity(), values_needed);
         let reserved = table_bytes(entries_after, values_after).saturating_sub(before);
         // An offset past `u32` is not kept (some 32 GiB of one receiver's values).
         let Ok(start) = u32::try_from(self.values.len()) else {
@@ -309,14 +314,9 @@ mod tests {
             t.keep(key(node), (&seen[..points], &ff[..points]), None, &budget);
             assert!(budget.used() <= limit, "{} of {limit}", budget.used());
             // The values grew once at most, to the size `keep` reserved (none when they fit).
-            let reserved = if t.values.len() > capacity {
-                (2 * capacity).max(t.values.len()).max(4)
-            } else {
-                capacity
-            };
             assert_eq!(
                 t.values.capacity(),
-                reserved,
+                grown_capacity(capacity, t.values.len()),
                 "node {node}: {capacity} -> {} values",
                 t.values.capacity()
             );
