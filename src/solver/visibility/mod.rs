@@ -34,7 +34,9 @@ pub use bounding_planes::bounding_planes;
 
 use super::striped_count::StripedCount;
 use glam::{DVec3, UVec2, Vec3A};
-use node_test::{bundle_slots, node_hits, slot_hits_for};
+use node_test::{bundle_slots, node_hits, slot_hits};
+#[cfg(target_arch = "x86_64")]
+use node_test::{slot_hits_widened, WidenedNode};
 use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
 use std::cell::Cell;
 
@@ -257,7 +259,7 @@ impl Visibility {
     /// (`packet_verdicts_are_the_single_rays`), found in one traversal of the BVH: a node is
     /// read once for the whole packet, its children are first tested against the box of every
     /// segment still unblocked ([`bundle_slots`]), then against each such segment's ray
-    /// ([`slot_hits_for`]); a segment leaves the packet at its first blocker. Not counted.
+    /// ([`slot_hits`], on x86-64-v3 against the node's planes widened once, [`WidenedNode`]); a segment leaves the packet at its first blocker. Not counted.
     pub(crate) fn visible_from(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if self.x86_64_v3 {
@@ -299,7 +301,10 @@ impl Visibility {
         // zeroed at every call (`docs/performance-notes.md`, the profile of 2026-12-04).
         let mut segs = PACKET_SEGMENTS.take();
         segs.clear();
-        segs.extend(targets.iter().take(64).map(|&q| self.segment(p, q)));
+        // A plain loop: an iterator's `fold` is compiled apart, without the caller's features.
+        for &q in targets.iter().take(64) {
+            segs.push(self.segment(p, q));
+        }
         let mut open = 0u64;
         for (i, s) in segs.iter().enumerate() {
             open |= u64::from(s.is_some()) << i;
@@ -336,14 +341,26 @@ impl Visibility {
             if shared == 0 {
                 continue;
             }
-            let mut child_rays = [0u64; 8];
+            // The node's planes widened once for the packet's segments (x86-64-v3).
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `V3` true only where AVX2 is there (this function's contract).
+            let widened = V3.then(|| unsafe { WidenedNode::new(node) });
+            // Each segment's slot bits, eight segments to a word (a byte each), turned into
+            // each slot's segments a word at a time.
+            let mut child_rays = SlotSegments::default();
             for i in bits(mask) {
-                // SAFETY: `V3` true only where AVX2 is there (this function's contract).
-                let hits = unsafe { slot_hits_for::<V3>(node, &seg(i).ray) };
-                for slot in bits(u64::from(hits & shared)) {
-                    child_rays[slot as usize] |= 1 << i;
-                }
+                let ray = &seg(i).ray;
+                #[cfg(target_arch = "x86_64")]
+                let hits = match &widened {
+                    // SAFETY: as above.
+                    Some(w) => unsafe { slot_hits_widened(w, ray) },
+                    None => slot_hits(node, ray),
+                };
+                #[cfg(not(target_arch = "x86_64"))]
+                let hits = slot_hits(node, ray);
+                child_rays.add(i, hits & shared);
             }
+            let child_rays = child_rays.finish();
             for (slot, &rays) in child_rays.iter().enumerate() {
                 if rays == 0 {
                     continue;
@@ -442,6 +459,65 @@ fn cpu_has_x86_64_v3() -> bool {
 }
 
 /// The indices of the bits set in `mask`, lowest first.
+/// The segments of a packet that reach each of a node's eight slots, gathered from each
+/// segment's slot bits: segment `i`'s bits go to byte `i % 8` of a word, and each word of eight
+/// segments is transposed as an 8 x 8 bit matrix into the slots' masks at once (no store per
+/// segment and slot). Segments are added in increasing order (`bits`).
+#[derive(Default)]
+struct SlotSegments {
+    slots: [u64; 8],
+    /// The eight segments `8 * group ..` being gathered, a byte each.
+    word: u64,
+    group: u32,
+}
+
+impl SlotSegments {
+    #[inline(always)]
+    fn add(&mut self, segment: u32, slots: u32) {
+        debug_assert!(segment / 8 >= self.group && slots < 256);
+        if segment / 8 != self.group {
+            self.flush();
+            self.group = segment / 8;
+        }
+        self.word |= u64::from(slots) << (8 * (segment % 8));
+    }
+
+    #[inline(always)]
+    fn flush(&mut self) {
+        if self.word == 0 {
+            return;
+        }
+        let t = transpose_bits8(self.word);
+        for (s, slot) in self.slots.iter_mut().enumerate() {
+            *slot |= ((t >> (8 * s)) & 0xff) << (8 * self.group);
+        }
+        self.word = 0;
+    }
+
+    /// Each slot's segments: bit `i` of `slots[s]` set when segment `i` reaches slot `s`.
+    #[inline(always)]
+    fn finish(mut self) -> [u64; 8] {
+        self.flush();
+        self.slots
+    }
+}
+
+/// The 8 x 8 bit matrix `x` (row `r` in byte `r`, column `c` in bit `c` of it) transposed: bit `c`
+/// of byte `r` becomes bit `r` of byte `c` (Hacker's Delight, `transpose8`, in three swaps of
+/// blocks; `transposed_bits_are_the_brute_force_ones`).
+#[inline(always)]
+fn transpose_bits8(mut x: u64) -> u64 {
+    x = (x & 0xAA55_AA55_AA55_AA55)
+        | ((x & 0x00AA_00AA_00AA_00AA) << 7)
+        | ((x >> 7) & 0x00AA_00AA_00AA_00AA);
+    x = (x & 0xCCCC_3333_CCCC_3333)
+        | ((x & 0x0000_CCCC_0000_CCCC) << 14)
+        | ((x >> 14) & 0x0000_CCCC_0000_CCCC);
+    (x & 0xF0F0_F0F0_0F0F_0F0F)
+        | ((x & 0x0000_0000_F0F0_F0F0) << 28)
+        | ((x >> 28) & 0x0000_0000_F0F0_F0F0)
+}
+
 fn bits(mut mask: u64) -> impl Iterator<Item = u32> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {

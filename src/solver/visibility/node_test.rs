@@ -2,7 +2,8 @@
 //! `visibility/mod.rs`: which children a ray's slab test passes ([`slot_hits`], and
 //! [`node_hits`] in the `hitmask` layout `obvhs::traverse!` reads), and which children a box
 //! overlaps ([`bundle_slots`], the packet's shared test); [`slot_hits_avx2`], the slab test of
-//! the x86-64-v3 code path, eight children at once.
+//! the x86-64-v3 code path, eight children at once, on a node's planes widened once for a
+//! packet's segments ([`WidenedNode`], [`slot_hits_widened`]).
 //!
 //! Invariant: every test is conservative for the segment test: it never drops a child that
 //! holds a counted hit (`node_hits_keeps_every_child_obvhs_keeps`,
@@ -122,55 +123,89 @@ pub(super) unsafe fn slot_hits_for<const V3: bool>(node: &CwBvhNode, ray: &Ray) 
     slot_hits(node, ray)
 }
 
+/// A CWBVH node's eight child boxes widened once from their 8-bit planes to f32, in the node's
+/// quantized frame, for the slab tests of many rays ([`slot_hits_widened`]): a packet reads a
+/// node once and tests each of its segments against the same planes.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(super) struct WidenedNode {
+    /// `child_min` and `child_max` per axis (x, y, z), eight children to a vector.
+    lo: [std::arch::x86_64::__m256; 3],
+    hi: [std::arch::x86_64::__m256; 3],
+    extent: Vec3A,
+    origin: Vec3A,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WidenedNode {
+    /// The planes of `node`, widened exactly (every `u8` is an `f32`).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn new(node: &CwBvhNode) -> Self {
+        use std::arch::x86_64::*;
+        let widen = |q: &[u8; 8]| {
+            // SAFETY: AVX2 is enabled here; the load reads the 8 bytes of a [u8; 8].
+            unsafe {
+                _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
+                    q.as_ptr() as *const __m128i
+                )))
+            }
+        };
+        WidenedNode {
+            lo: [
+                widen(&node.child_min_x),
+                widen(&node.child_min_y),
+                widen(&node.child_min_z),
+            ],
+            hi: [
+                widen(&node.child_max_x),
+                widen(&node.child_max_y),
+                widen(&node.child_max_z),
+            ],
+            extent: node.compute_extent(),
+            origin: Vec3A::from(node.p),
+        }
+    }
+}
+
 /// [`slot_hits`] with the eight children in one AVX2 vector: the same operations in the same
 /// order lane by lane (no FMA), so the same bits (`node_hits_keeps_every_child_obvhs_keeps`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
 pub(super) fn slot_hits_avx2(node: &CwBvhNode, ray: &Ray) -> u32 {
+    slot_hits_widened(&WidenedNode::new(node), ray)
+}
+
+/// [`slot_hits_avx2`] on planes widened beforehand (it is this on its own node's planes: one body
+/// for both, pinned by `node_hits_keeps_every_child_obvhs_keeps`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn slot_hits_widened(node: &WidenedNode, ray: &Ray) -> u32 {
     use std::arch::x86_64::*;
-    let adj_inv = node.compute_extent() * ray.inv_direction;
-    let adj_orig = (Vec3A::from(node.p) - ray.origin) * ray.inv_direction;
-    // The planes `lo` and `hi` of one axis, nearest first along the ray, as `plane * scale + offset`.
-    #[inline(always)]
-    fn slab(lo: &[u8; 8], hi: &[u8; 8], neg: bool, scale: f32, offset: f32) -> (__m256, __m256) {
-        let (near, far) = if neg { (hi, lo) } else { (lo, hi) };
-        // SAFETY: AVX2 is enabled in the only caller; the loads read the 8 bytes of a [u8; 8].
-        unsafe {
-            let widen = |q: &[u8; 8]| {
-                _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(
-                    q.as_ptr() as *const __m128i
-                )))
-            };
-            let (s, o) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
-            (
-                _mm256_add_ps(_mm256_mul_ps(widen(near), s), o),
-                _mm256_add_ps(_mm256_mul_ps(widen(far), s), o),
-            )
-        }
-    }
-    let d = ray.direction;
-    let (xn, xf) = slab(
-        &node.child_min_x,
-        &node.child_max_x,
-        d.x < 0.0,
-        adj_inv.x,
-        adj_orig.x,
-    );
-    let (yn, yf) = slab(
-        &node.child_min_y,
-        &node.child_max_y,
-        d.y < 0.0,
-        adj_inv.y,
-        adj_orig.y,
-    );
-    let (zn, zf) = slab(
-        &node.child_min_z,
-        &node.child_max_z,
-        d.z < 0.0,
-        adj_inv.z,
-        adj_orig.z,
-    );
+    let adj_inv = node.extent * ray.inv_direction;
+    let adj_orig = (node.origin - ray.origin) * ray.inv_direction;
+    // The planes of one axis, nearest first along the ray, as `plane * scale + offset`.
+    let slab = |axis: usize| {
+        let (lo, hi) = (node.lo[axis], node.hi[axis]);
+        let (near, far) = if ray.direction[axis] < 0.0 {
+            (hi, lo)
+        } else {
+            (lo, hi)
+        };
+        let (s, o) = (
+            _mm256_set1_ps(adj_inv[axis]),
+            _mm256_set1_ps(adj_orig[axis]),
+        );
+        (
+            _mm256_add_ps(_mm256_mul_ps(near, s), o),
+            _mm256_add_ps(_mm256_mul_ps(far, s), o),
+        )
+    };
+    let (xn, xf) = slab(0);
+    let (yn, yf) = slab(1);
+    let (zn, zf) = slab(2);
     let (eps, tmax) = (_mm256_set1_ps(ray.tmin), _mm256_set1_ps(ray.tmax));
     let near = _mm256_max_ps(_mm256_max_ps(xn, _mm256_max_ps(yn, zn)), eps);
     let far = _mm256_min_ps(_mm256_min_ps(xf, _mm256_min_ps(yf, zf)), tmax);

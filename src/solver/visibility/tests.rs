@@ -226,6 +226,42 @@ pub(super) fn room_with_block(block_lo: DVec3, block_size: DVec3) -> (Occluders,
     (tris, planes)
 }
 
+/// [`transpose_bits8`] moves bit `c` of byte `r` to bit `r` of byte `c`, for random matrices and
+/// the one-bit ones; and [`SlotSegments`] gives each slot the segments whose bits name it, as a
+/// store per segment and slot would, for packets of up to 64 segments with gaps.
+#[test]
+fn transposed_bits_are_the_brute_force_ones() {
+    let mut rnd = xorshift(0x7a05);
+    let word = |rnd: &mut dyn FnMut() -> f64| (rnd() * 2f64.powi(32)) as u64;
+    let units = (0..64).map(|b| 1u64 << b);
+    let random = (0..2000).map(|_| word(&mut rnd) << 32 | word(&mut rnd));
+    for x in units.chain(random) {
+        let t = transpose_bits8(x);
+        for r in 0..8 {
+            for c in 0..8 {
+                assert_eq!(x >> (8 * r + c) & 1, t >> (8 * c + r) & 1, "{x:#x}");
+            }
+        }
+    }
+    for _ in 0..500 {
+        let mut gathered = SlotSegments::default();
+        let mut expected = [0u64; 8];
+        for i in 0..64u32 {
+            if rnd() < 0.4 {
+                continue;
+            }
+            let slots = (rnd() * 256.0) as u32;
+            gathered.add(i, slots);
+            for s in 0..8 {
+                if slots >> s & 1 == 1 {
+                    expected[s] |= 1 << i;
+                }
+            }
+        }
+        assert_eq!(gathered.finish(), expected);
+    }
+}
+
 /// A uniform random point of a random triangle of `tris`, with its face.
 fn point_on_face(tris: &[([DVec3; 3], u32)], rnd: &mut impl FnMut() -> f64) -> (DVec3, u32) {
     let (t, f) = tris[(rnd() * tris.len() as f64) as usize % tris.len()];
