@@ -458,7 +458,6 @@ fn cpu_has_x86_64_v3() -> bool {
     }
 }
 
-/// The indices of the bits set in `mask`, lowest first.
 /// The segments of a packet that reach each of a node's eight slots, gathered from each
 /// segment's slot bits: segment `i`'s bits go to byte `i % 8` of a word, and each word of eight
 /// segments is transposed as an 8 x 8 bit matrix into the slots' masks at once (no store per
@@ -518,6 +517,7 @@ fn transpose_bits8(mut x: u64) -> u64 {
         | ((x >> 28) & 0x0000_0000_F0F0_F0F0)
 }
 
+/// The indices of the bits set in `mask`, lowest first.
 fn bits(mut mask: u64) -> impl Iterator<Item = u32> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {
