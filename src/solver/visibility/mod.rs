@@ -36,7 +36,7 @@ use super::striped_count::StripedCount;
 use glam::{DVec3, UVec2, Vec3A};
 use node_test::{bundle_slots, node_hits, slot_hits};
 #[cfg(target_arch = "x86_64")]
-use node_test::{slot_hits_widened, WidenedNode};
+use node_test::{bundle_slots_widened, slot_hits_widened, WidenedNode};
 use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray, Boundable, BvhBuildParams};
 use std::cell::Cell;
 
@@ -337,14 +337,22 @@ impl Visibility {
                 (lo, hi) = (lo.min(end), hi.max(end));
             }
             let pad = Vec3A::splat(self.box_padding);
-            let shared = bundle_slots(node, lo - pad, hi + pad);
-            if shared == 0 {
-                continue;
-            }
-            // The node's planes widened once for the packet's segments (x86-64-v3).
+            let (lo, hi) = (lo - pad, hi + pad);
+            // The node's planes widened once for the packet's box and segments (x86-64-v3).
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `V3` true only where AVX2 is there (this function's contract).
             let widened = V3.then(|| unsafe { WidenedNode::new(node) });
+            #[cfg(target_arch = "x86_64")]
+            let shared = match &widened {
+                // SAFETY: as above.
+                Some(w) => unsafe { bundle_slots_widened(w, lo, hi) },
+                None => bundle_slots(node, lo, hi),
+            };
+            #[cfg(not(target_arch = "x86_64"))]
+            let shared = bundle_slots(node, lo, hi);
+            if shared == 0 {
+                continue;
+            }
             // Each segment's slot bits, eight segments to a word (a byte each), turned into
             // each slot's segments a word at a time.
             let mut child_rays = SlotSegments::default();

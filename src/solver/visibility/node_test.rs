@@ -134,6 +134,8 @@ pub(super) struct WidenedNode {
     hi: [std::arch::x86_64::__m256; 3],
     extent: Vec3A,
     origin: Vec3A,
+    /// Bit `i` set when child `i` is not empty (`child_meta` not 0).
+    nonempty: u32,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -164,8 +166,31 @@ impl WidenedNode {
             ],
             extent: node.compute_extent(),
             origin: Vec3A::from(node.p),
+            // SAFETY: as above; the load reads the 8 bytes of `child_meta`.
+            nonempty: unsafe {
+                let meta = _mm_loadl_epi64(node.child_meta.as_ptr() as *const __m128i);
+                !(_mm_movemask_epi8(_mm_cmpeq_epi8(meta, _mm_setzero_si128())) as u32) & 0xff
+            },
         }
     }
+}
+
+/// [`bundle_slots`] on a node's widened planes: the same comparisons of the same values, eight
+/// children at once, so the same bits (`bundle_slots_keep_every_child_box_that_overlaps`).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn bundle_slots_widened(node: &WidenedNode, lo: Vec3A, hi: Vec3A) -> u32 {
+    use std::arch::x86_64::*;
+    let inv = node.extent.recip();
+    let (lo, hi) = ((lo - node.origin) * inv, (hi - node.origin) * inv);
+    let mut overlaps = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    for axis in 0..3 {
+        let below = _mm256_cmp_ps::<_CMP_LE_OQ>(node.lo[axis], _mm256_set1_ps(hi[axis]));
+        let above = _mm256_cmp_ps::<_CMP_GE_OQ>(node.hi[axis], _mm256_set1_ps(lo[axis]));
+        overlaps = _mm256_and_ps(overlaps, _mm256_and_ps(below, above));
+    }
+    _mm256_movemask_ps(overlaps) as u32 & node.nonempty
 }
 
 /// [`slot_hits`] with the eight children in one AVX2 vector: the same operations in the same
@@ -327,8 +352,16 @@ mod tests {
         unsafe { node_hits::<true>(node, ray, oct_inv4) }
     }
 
+    /// [`bundle_slots_widened`] on the node's own planes, compiled with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn bundle_slots_avx2(node: &CwBvhNode, lo: Vec3A, hi: Vec3A) -> u32 {
+        bundle_slots_widened(&WidenedNode::new(node), lo, hi)
+    }
+
     /// [`bundle_slots`] keeps every non-empty child whose box (obvhs' `child_aabb`) overlaps the
-    /// given box, and only those up to rounding, for random boxes in the room.
+    /// given box, and only those up to rounding, for random boxes in the room; and
+    /// [`bundle_slots_widened`] gives its bits (on a CPU with AVX2).
     #[test]
     fn bundle_slots_keep_every_child_box_that_overlaps() {
         let v = furnished_room();
@@ -340,6 +373,12 @@ mod tests {
             let b = a + Vec3A::new(rnd(), rnd(), rnd()) * 0.3;
             for node in &bvh.nodes {
                 let slots = bundle_slots(node, a, b);
+                #[cfg(target_arch = "x86_64")]
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU has AVX2.
+                    let wide = unsafe { bundle_slots_avx2(node, a, b) };
+                    assert_eq!(wide, slots, "{node:?} {a} {b}");
+                }
                 for i in 0..8 {
                     if node.is_child_empty(i) {
                         assert_eq!(slots >> i & 1, 0);
