@@ -22,6 +22,8 @@ use glam::DVec2;
 
 /// Most points of a quadrature rule the solver uses (4 per axis, M3).
 pub const MAX_RULE_POINTS: usize = 16;
+const _: () =
+    assert!(MAX_RULE_POINTS == (super::basis::MAX_ORDER + 1) * (super::basis::MAX_ORDER + 1));
 /// A parallelogram's check points (`rules::corner_probe_points`: near the corners, the centre).
 pub const CHECK_POINTS: usize = 5;
 

@@ -14,8 +14,8 @@
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
 
-use super::basis::{child_maps, ChildMap, MAX_FUNCTIONS, MAX_ORDER};
-use super::cover::NodeCover;
+use super::basis::{child_maps, ChildMap, MAX_FUNCTIONS};
+use super::cover::{NodeCover, MAX_RULE_POINTS};
 use super::element::{
     partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, Patch,
 };
@@ -198,7 +198,7 @@ const MISSED_EXCHANGE_RATIO: f64 = 0.1;
 
 /// Most rule points (the arrays below are sized for any rule: M3's 4 x 4). Every source a
 /// receiver node sees fills arrays of this length: no more than needed.
-const POINTS: usize = (MAX_ORDER + 1) * (MAX_ORDER + 1);
+const POINTS: usize = MAX_RULE_POINTS;
 
 /// A source element as one receiver node sees it: its rule's points, their emission weights and
 /// radiosity, and its strength weighted as the oracle's errors are.

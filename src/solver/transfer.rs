@@ -5,8 +5,8 @@
 //! Invariant: only the rule points enter the projection `dh` and the link's own oracle; the check
 //! points are recorded for the node's check after the shot.
 
-use super::basis::{MAX_FUNCTIONS, MAX_ORDER};
-use super::cover::CHECK_POINTS;
+use super::basis::MAX_FUNCTIONS;
+use super::cover::{CHECK_POINTS, MAX_RULE_POINTS};
 use super::element::receiving_point;
 use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
@@ -15,9 +15,9 @@ use crate::scene::Rgb;
 use std::cell::Cell;
 
 /// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
-/// parallelogram's 5). Every evaluation zeroes its arrays of this length: no more than needed.
+/// parallelogram's 5, rounded up to 24). Every evaluation zeroes its arrays of this length.
 pub(super) const MAX_POINTS: usize = 24;
-const _: () = assert!((MAX_ORDER + 1) * (MAX_ORDER + 1) + CHECK_POINTS <= MAX_POINTS);
+const _: () = assert!(MAX_RULE_POINTS + CHECK_POINTS <= MAX_POINTS);
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {

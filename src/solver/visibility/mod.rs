@@ -259,7 +259,8 @@ impl Visibility {
     /// (`packet_verdicts_are_the_single_rays`), found in one traversal of the BVH: a node is
     /// read once for the whole packet, its children are first tested against the box of every
     /// segment still unblocked ([`bundle_slots`]), then against each such segment's ray
-    /// ([`slot_hits`], on x86-64-v3 against the node's planes widened once, [`WidenedNode`]); a segment leaves the packet at its first blocker. Not counted.
+    /// ([`slot_hits`]; on x86-64-v3 both on the node's planes widened once, `WidenedNode`); a
+    /// segment leaves the packet at its first blocker. Not counted.
     pub(crate) fn visible_from(&self, p: DVec3, targets: &[DVec3], ignore: [u32; 2]) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if self.x86_64_v3 {
@@ -341,7 +342,11 @@ impl Visibility {
             // The node's planes widened once for the packet's box and segments (x86-64-v3).
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `V3` true only where AVX2 is there (this function's contract).
-            let widened = V3.then(|| unsafe { WidenedNode::new(node) });
+            let widened = if V3 {
+                Some(unsafe { WidenedNode::new(node) })
+            } else {
+                None
+            };
             #[cfg(target_arch = "x86_64")]
             let shared = match &widened {
                 // SAFETY: as above.
@@ -469,7 +474,8 @@ fn cpu_has_x86_64_v3() -> bool {
 /// The segments of a packet that reach each of a node's eight slots, gathered from each
 /// segment's slot bits: segment `i`'s bits go to byte `i % 8` of a word, and each word of eight
 /// segments is transposed as an 8 x 8 bit matrix into the slots' masks at once (no store per
-/// segment and slot). Segments are added in increasing order (`bits`).
+/// segment and slot). Segments are added in increasing order (`bits`). Pinned against a store
+/// per segment and slot by `transposed_bits_are_the_brute_force_ones`.
 #[derive(Default)]
 struct SlotSegments {
     slots: [u64; 8],

@@ -3,7 +3,7 @@
 //! [`node_hits`] in the `hitmask` layout `obvhs::traverse!` reads), and which children a box
 //! overlaps ([`bundle_slots`], the packet's shared test); [`slot_hits_avx2`], the slab test of
 //! the x86-64-v3 code path, eight children at once, on a node's planes widened once for a
-//! packet's segments ([`WidenedNode`], [`slot_hits_widened`]).
+//! packet's box and segments (`WidenedNode`, `bundle_slots_widened`, `slot_hits_widened`).
 //!
 //! Invariant: every test is conservative for the segment test: it never drops a child that
 //! holds a counted hit (`node_hits_keeps_every_child_obvhs_keeps`,
@@ -124,8 +124,11 @@ pub(super) unsafe fn slot_hits_for<const V3: bool>(node: &CwBvhNode, ray: &Ray) 
 }
 
 /// A CWBVH node's eight child boxes widened once from their 8-bit planes to f32, in the node's
-/// quantized frame, for the slab tests of many rays ([`slot_hits_widened`]): a packet reads a
-/// node once and tests each of its segments against the same planes.
+/// quantized frame, for the box test of a packet and the slab tests of its rays
+/// ([`bundle_slots_widened`], [`slot_hits_widened`]): a packet reads a node once and tests its
+/// box and each of its segments against the same planes (pinned by
+/// `bundle_slots_keep_every_child_box_that_overlaps` and
+/// `node_hits_keeps_every_child_obvhs_keeps`).
 #[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(super) struct WidenedNode {

@@ -243,6 +243,17 @@ fn transposed_bits_are_the_brute_force_ones() {
             }
         }
     }
+    // Whole groups of eight skipped, the first among them.
+    for (segments, slots) in [(vec![3, 20], 0x81), (vec![63], 0x10), (vec![9], 0xff)] {
+        let mut gathered = SlotSegments::default();
+        for &i in &segments {
+            gathered.add(i, slots);
+        }
+        let want: u64 = segments.iter().map(|&i| 1u64 << i).sum();
+        let expected: [u64; 8] =
+            std::array::from_fn(|s| if slots >> s & 1 == 1 { want } else { 0 });
+        assert_eq!(gathered.finish(), expected, "{segments:?}");
+    }
     for _ in 0..500 {
         let mut gathered = SlotSegments::default();
         let mut expected = [0u64; 8];
