@@ -15,9 +15,8 @@ use crate::scene::Rgb;
 use std::cell::Cell;
 
 /// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
-/// parallelogram's 5, rounded up to 24). Every evaluation zeroes its arrays of this length.
-pub(super) const MAX_POINTS: usize = 24;
-const _: () = assert!(MAX_RULE_POINTS + CHECK_POINTS <= MAX_POINTS);
+/// parallelogram's 5). Every evaluation zeroes its arrays of this length.
+pub(super) const MAX_POINTS: usize = MAX_RULE_POINTS + CHECK_POINTS;
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {
