@@ -36,16 +36,19 @@ const MAX_BACK: f64 = 0.95;
 /// Receivers each sampled shooter's facing count is taken over, at most (scaled to the whole).
 const MAX_FACING_RECEIVERS: usize = 1024;
 /// What an indirect shot costs, in rays of the direct phase (its seconds over the rays it
-/// traced): [`RAYS_PER_RECEIVER`] per receiver the shooter faces (its plan, its far links),
-/// and [`RAYS_PER_POWER`] times the square root of its power over the threshold (the links
-/// refined near it; docs/performance-notes.md, "What a shot costs against the power it sends").
-/// Chosen on zdm2 and checked on the scaling benchmark's other scenes, so that the ETA stays
-/// within 2 of the time left on each (the same notes, "The indirect phase priced along a
-/// foreseen cost curve" and "Form factors kept with the near links' verdicts"; a change in
-/// what an indirect shot costs moves them): the ETA corrects the level as the indirect shots
-/// come, the curve's shape is what it relies on.
-const RAYS_PER_RECEIVER: f64 = 2.0;
-const RAYS_PER_POWER: f64 = 7000.0;
+/// traced), [`shot_cost`]: [`RAYS_PER_RECEIVER`] per receiver the shooter faces (its plan, its
+/// far links), [`RAYS_PER_POWER`] times the square root of its power over the threshold and
+/// [`RAYS_PER_POWER_LINEAR`] times that power itself (the links refined near it: as the square
+/// root from 1 to 100 thresholds, steeper above, where a shot's near links cover ever more of
+/// the receivers around it; docs/performance-notes.md, "What a shot costs against the power it
+/// sends" and "The ETA's price of a powerful shot").
+/// Fitted on the scaling benchmark's six scenes, so that the ETA stays within 2 of the time
+/// left on each (the same notes; a change in what an indirect shot costs, or in what a direct
+/// ray costs, moves them): the ETA corrects the level as the indirect shots come, the curve's
+/// shape is what it relies on.
+const RAYS_PER_RECEIVER: f64 = 3.7;
+const RAYS_PER_POWER: f64 = 4000.0;
+const RAYS_PER_POWER_LINEAR: f64 = 100.0;
 /// Nats between the points of the cost curve, at least.
 const CURVE_STEP: f64 = 0.01;
 
@@ -134,9 +137,8 @@ fn facing_counts(n: usize, sample: &[Sampled], faces: &dyn Fn(usize, usize) -> b
         .collect()
 }
 
-/// The cost curve of the model's shots `simulated`, each costing per root it stands for
-/// [`RAYS_PER_RECEIVER`] per receiver it faces and [`RAYS_PER_POWER`] times the square root of
-/// its power over `threshold`; the nats shed after each from `total` W.
+/// The cost curve of the model's shots `simulated`, each costing [`shot_cost`] per root it
+/// stands for (its power over `threshold`); the nats shed after each from `total` W.
 fn cost_curve(
     simulated: &[SimulatedShot],
     weight: &[f64],
@@ -148,8 +150,7 @@ fn cost_curve(
     let mut cost = 0.0;
     for (j, s) in simulated.iter().enumerate() {
         let (k, p) = (s.entry, s.power);
-        cost +=
-            weight[k] * (RAYS_PER_RECEIVER * facing[k] + RAYS_PER_POWER * (p / threshold).sqrt());
+        cost += weight[k] * shot_cost(facing[k], p / threshold);
         let nats = (total / s.left.max(total * 1e-300)).ln();
         let last = points.last().map_or(0.0, |&(u, _)| u);
         if nats >= last + CURVE_STEP || j + 1 == simulated.len() {
@@ -157,6 +158,12 @@ fn cost_curve(
         }
     }
     CostCurve::new(points)
+}
+
+/// What a shot costs, in rays of the direct phase: `facing` receivers faced, a power of
+/// `power` thresholds sent (the constants' doc; `the_cost_curve_counts_receivers_faced_and_power`).
+fn shot_cost(facing: f64, power: f64) -> f64 {
+    RAYS_PER_RECEIVER * facing + RAYS_PER_POWER * power.sqrt() + RAYS_PER_POWER_LINEAR * power
 }
 
 impl CostCurve {
@@ -492,9 +499,10 @@ mod tests {
     }
 
     /// The cost curve of a small scene against its shots counted by hand: each shot costs
-    /// [`RAYS_PER_RECEIVER`] per receiver it faces (four: the other roots of its copy) and
-    /// [`RAYS_PER_POWER`] times the square root of its power over the threshold; the nats are
-    /// those of the unshot power the shots leave, a share `back` of each coming back.
+    /// [`RAYS_PER_RECEIVER`] per receiver it faces (four: the other roots of its copy),
+    /// [`RAYS_PER_POWER`] times the square root of its power over the threshold and
+    /// [`RAYS_PER_POWER_LINEAR`] times that power; the nats are those of the unshot power the
+    /// shots leave, a share `back` of each coming back.
     #[test]
     fn the_cost_curve_counts_receivers_faced_and_power() {
         let (f, _) = copies(1, 0);
@@ -504,7 +512,10 @@ mod tests {
         let (mut left, mut cost) = (15.0, 0.0);
         for s in &exact {
             let p = s.power;
-            cost += RAYS_PER_RECEIVER * 4.0 + RAYS_PER_POWER * (p / threshold).sqrt();
+            let power = p / threshold;
+            cost += RAYS_PER_RECEIVER * 4.0
+                + RAYS_PER_POWER * power.sqrt()
+                + RAYS_PER_POWER_LINEAR * power;
             left -= 0.6 * p;
             let nats = (15.0f64 / left).ln();
             let at = f.cost.at(nats);
