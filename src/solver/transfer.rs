@@ -10,6 +10,7 @@ use super::cover::{CHECK_POINTS, MAX_RULE_POINTS};
 use super::element::receiving_point;
 use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
+use super::rules::corner_probe_points;
 use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
 use std::cell::Cell;
@@ -17,6 +18,10 @@ use std::cell::Cell;
 /// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
 /// parallelogram's 5). Every evaluation zeroes its arrays of this length.
 pub(super) const MAX_POINTS: usize = MAX_RULE_POINTS + CHECK_POINTS;
+
+/// How close, in reference coordinates, a check point must lie to a rule point to take its
+/// irradiance instead of asking the source again (the same point but for rounding).
+const TWIN_EPS: f64 = 1e-12;
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {
@@ -90,7 +95,19 @@ pub(super) fn receive(
         form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
+    // A check point where a rule point lies (a parallelogram's centre at M2) sees what it saw.
+    let probes = corner_probe_points(root.shape);
+    let twin = |j: usize| {
+        rule.iter()
+            .position(|q| (q.st - probes[j]).abs().max_element() <= TWIN_EPS)
+    };
     for k in 0..out.points {
+        if let Some(i) = k.checked_sub(nk).and_then(twin) {
+            out.e[k] = out.e[i];
+            out.seen[k] = out.seen[i];
+            out.form_factors[k] = out.form_factors[i];
+            continue;
+        }
         let x = match rule.get(k) {
             Some(q) => receiving_point(root, &receiver.patch, receiver.cover, k, q.st),
             None => receiver.check_point(k - nk),
@@ -132,6 +149,7 @@ mod tests {
     use crate::solver::far_field::tests::square_under_square;
     use crate::solver::hierarchy::Hierarchy;
     use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
+    use glam::DVec2;
 
     /// The receiver of `square_under_square` (its root node) asked at its rule and check points
     /// with `rays`: what it received, and the rays traced.
@@ -175,6 +193,33 @@ mod tests {
         assert!(!taken.all_pass, "a taken verdict is not passed on");
     }
 
+    /// A parallelogram's check point at its centre, where its M2 rule has a point, takes that
+    /// point's irradiance, verdicts and form factor and traces no ray of its own; the other
+    /// check points trace theirs. Behind the blocker, so that the points differ.
+    #[test]
+    fn a_check_point_on_a_rule_point_takes_its_irradiance() {
+        let rules = Rules::new(2);
+        let rule = rules.of(Shape::Parallelogram);
+        let probes = corner_probe_points(Shape::Parallelogram);
+        let centre = |st: DVec2| (st - DVec2::splat(0.5)).length() < 1e-12;
+        let i = rule
+            .iter()
+            .position(|q| centre(q.st))
+            .expect("M2 has a centre point");
+        let j = probes
+            .iter()
+            .position(|&p| centre(p))
+            .expect("a centre check point");
+        let (got, rays) = received(true, Rays::Trace);
+        let k = got.rule_points + j;
+        assert_eq!(got.e[k], got.e[i]);
+        assert_eq!(got.seen[k], got.seen[i]);
+        assert_eq!(got.form_factors[k], got.form_factors[i]);
+        assert!(got.form_factors[i] > 0.0);
+        // Nine rays (the source's M2 rule) from each point but the twin.
+        assert_eq!(rays, 9 * (got.points as u64 - 1));
+    }
+
     /// One ray per point, to the source's centre: as many rays as points; with nothing in the
     /// way the same numbers as every sample traced; behind the blocker (it hides the source's
     /// centre from the receiver's middle, not from its corners) each point gets all or nothing.
@@ -182,7 +227,8 @@ mod tests {
     fn centre_rays_trace_one_ray_per_point_and_give_all_or_nothing() {
         let (open, _) = received(false, Rays::Trace);
         let (centre, rays) = received(false, Rays::Centre);
-        assert_eq!(rays, centre.points as u64);
+        // One point fewer: the check point at the centre is a rule point's twin.
+        assert_eq!(rays, centre.points as u64 - 1);
         assert_eq!(centre.e[..centre.points], open.e[..open.points]);
         assert_eq!(centre.dh, open.dh);
         assert!(
