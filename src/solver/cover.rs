@@ -397,7 +397,8 @@ pub(super) mod tests {
     }
     /// A stored node's check points stand in as `mask.closest_point` would at every transfer:
     /// themselves on the face (full nodes among them), their closest face point off it; a
-    /// virtual source element that is empty keeps them as they are (it never receives).
+    /// virtual source element that is empty keeps them as they are (it never receives). The
+    /// centre check point stands in exactly where the M2 rule's centre point does.
     #[test]
     fn check_points_stand_in_as_their_closest_face_points() {
         let mask = holed(0.5);
@@ -416,9 +417,25 @@ pub(super) mod tests {
             maps.extend_from_slice(&level);
         }
         let (mut off_face, mut full) = (0, 0);
+        // The centre check point and the M2 rule's centre point, twins (`rules::CheckTwins`).
+        let centre = |st: &DVec2| *st == DVec2::splat(0.5);
+        let centre_check = r
+            .check_points
+            .iter()
+            .position(centre)
+            .expect("centre check");
+        let centre_rule = r
+            .rule
+            .iter()
+            .position(|q| centre(&q.st))
+            .expect("M2 centre");
         for m in &maps {
             let c = NodeCover::new(&mask, m, &r, &basis, true);
             full += usize::from(c.status == ElementStatus::Full);
+            assert_eq!(
+                c.check_point[centre_check], c.visibility_point[centre_rule],
+                "{m:?}: a twin stands in where its rule point does"
+            );
             for (j, &st) in r.check_points.iter().enumerate() {
                 let p = m.apply(st);
                 assert_eq!(c.check_point[j], mask.closest_point(p), "{m:?} point {j}");

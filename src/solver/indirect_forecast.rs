@@ -38,14 +38,13 @@ const MAX_FACING_RECEIVERS: usize = 1024;
 /// What an indirect shot costs, in rays of the direct phase (its seconds over the rays it
 /// traced), [`shot_cost`]: [`RAYS_PER_RECEIVER`] per receiver the shooter faces (its plan, its
 /// far links), [`RAYS_PER_POWER`] times the square root of its power over the threshold and
-/// [`RAYS_PER_POWER_LINEAR`] times that power itself (the links refined near it: as the square
-/// root from 1 to 100 thresholds, steeper above, where a shot's near links cover ever more of
-/// the receivers around it; docs/performance-notes.md, "What a shot costs against the power it
-/// sends" and "The ETA's price of a powerful shot").
-/// Fitted on the scaling benchmark's six scenes, so that the ETA stays within 2 of the time
-/// left on each (the same notes; a change in what an indirect shot costs, or in what a direct
-/// ray costs, moves them): the ETA corrects the level as the indirect shots come, the curve's
-/// shape is what it relies on.
+/// [`RAYS_PER_POWER_LINEAR`] times that power itself (the links refined near it, which grow
+/// faster than the square root for a powerful shot); the law is pinned by
+/// `the_cost_curve_counts_receivers_faced_and_power`. The constants are fitted on the scaling
+/// benchmark's six scenes so that the ETA stays within 2 of the time left on each
+/// (docs/performance-notes.md, "The ETA's price of a powerful shot"; a change in what an
+/// indirect shot or a direct ray costs moves them): the ETA corrects the level as the indirect
+/// shots come, the curve's shape is what it relies on.
 const RAYS_PER_RECEIVER: f64 = 3.7;
 const RAYS_PER_POWER: f64 = 4000.0;
 const RAYS_PER_POWER_LINEAR: f64 = 100.0;

@@ -1,6 +1,7 @@
 //! The solver's fixed tables at one order: the bases of both shapes ([`Bases`]), their quadrature
 //! rules with the zones of influence ([`Rules`]), the receiver's basis at its control and corner
-//! probe points ([`BasisAtControlPoints`]), and the corner probe points themselves.
+//! probe points ([`BasisAtControlPoints`]), the corner probe points themselves, and which of
+//! them are rule points' twins ([`CheckTwins`]).
 //!
 //! Invariant: `BasisAtControlPoints::of(shape)` holds one row per rule point of `Rules::of(shape)`,
 //! then one per [`corner_probe_points`]`(shape)`, in that order (the oracle indexes it so).
@@ -41,19 +42,54 @@ pub(super) struct Rules {
     /// Beyond how many radii of a source element its rule gives the form factor
     /// ([`kernel::rule_suffices_radii`]).
     pub(super) form_factor_radii: f64,
+    /// Per shape, for each of its [`corner_probe_points`], the rule point at the same place
+    /// ([`check_twins`]).
+    triangle_twins: CheckTwins,
+    parallelogram_twins: CheckTwins,
+}
+
+/// For each check point of a shape, the index of the rule point at the same place (within
+/// [`TWIN_EPS`] in reference coordinates), if any: a parallelogram's centre at M2. A receiver
+/// takes that point's answer there instead of asking the source again
+/// (`transfer::tests::a_check_point_on_a_rule_point_takes_its_irradiance`).
+pub(super) type CheckTwins = [Option<usize>; CHECK_POINTS];
+
+/// How close, in reference coordinates, a check point must lie to a rule point to be its twin
+/// (the same point but for rounding; `twins_are_the_centre_at_m2_only`).
+pub(super) const TWIN_EPS: f64 = 1e-12;
+
+/// The [`CheckTwins`] of `rule` and the check points `probes`.
+fn check_twins(rule: &[QuadPoint], probes: &[DVec2]) -> CheckTwins {
+    debug_assert!(probes.len() <= CHECK_POINTS);
+    std::array::from_fn(|j| {
+        let p = probes.get(j)?;
+        rule.iter()
+            .position(|q| (q.st - *p).abs().max_element() <= TWIN_EPS)
+    })
 }
 
 impl Rules {
     pub(super) fn new(order: usize) -> Self {
+        let triangle = rule(Shape::Triangle, order + 1);
+        let parallelogram = rule(Shape::Parallelogram, order + 1);
         Rules {
-            triangle: rule(Shape::Triangle, order + 1),
+            triangle_twins: check_twins(&triangle, corner_probe_points(Shape::Triangle)),
+            parallelogram_twins: check_twins(&parallelogram, &PARALLELOGRAM_CHECK_POINTS),
+            triangle,
             cover: CoverRules {
-                rule: rule(Shape::Parallelogram, order + 1),
+                rule: parallelogram,
                 zones: zones_of_influence(order + 1),
                 moment_rule: rule(Shape::Triangle, 3),
                 check_points: PARALLELOGRAM_CHECK_POINTS,
             },
             form_factor_radii: kernel::rule_suffices_radii(order),
+        }
+    }
+    /// The check points of `shape` that are rule points ([`CheckTwins`]).
+    pub(super) fn twins(&self, shape: Shape) -> &CheckTwins {
+        match shape {
+            Shape::Triangle => &self.triangle_twins,
+            Shape::Parallelogram => &self.parallelogram_twins,
         }
     }
     pub(super) fn of(&self, shape: Shape) -> &[QuadPoint] {
@@ -129,3 +165,29 @@ pub(super) fn corner_probe_points(shape: Shape) -> &'static [DVec2] {
 /// How far inside an element its corner probe points, and the spread rays' points, sit, in
 /// reference coordinates: off the element's border, where rays would graze the surfaces it meets.
 pub(super) const CORNER_INSET: f64 = 0.02;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A check point is a rule point's twin only at a parallelogram's centre at M2 (the middle
+    /// of the 3 x 3 Gauss rule); no triangle's, and no other order's.
+    #[test]
+    fn twins_are_the_centre_at_m2_only() {
+        for order in 1..=3 {
+            let r = Rules::new(order);
+            assert_eq!(r.twins(Shape::Triangle), &[None; CHECK_POINTS], "M{order}");
+            let twins = r.twins(Shape::Parallelogram);
+            for (j, twin) in twins.iter().enumerate() {
+                let centre = PARALLELOGRAM_CHECK_POINTS[j] == DVec2::splat(0.5);
+                match twin {
+                    Some(i) => {
+                        assert!(order == 2 && centre, "M{order} check point {j}");
+                        assert_eq!(r.cover.rule[*i].st, DVec2::splat(0.5));
+                    }
+                    None => assert!(order != 2 || !centre, "M{order} check point {j}"),
+                }
+            }
+        }
+    }
+}

@@ -10,7 +10,7 @@ use super::cover::{CHECK_POINTS, MAX_RULE_POINTS};
 use super::element::receiving_point;
 use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
-use super::rules::corner_probe_points;
+use super::rules::CheckTwins;
 use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
 use std::cell::Cell;
@@ -18,10 +18,6 @@ use std::cell::Cell;
 /// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
 /// parallelogram's 5). Every evaluation zeroes its arrays of this length.
 pub(super) const MAX_POINTS: usize = MAX_RULE_POINTS + CHECK_POINTS;
-
-/// How close, in reference coordinates, a check point must lie to a rule point to take its
-/// irradiance instead of asking the source again (the same point but for rounding).
-const TWIN_EPS: f64 = 1e-12;
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {
@@ -61,9 +57,10 @@ pub(super) struct Received {
 }
 
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
-/// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
-/// rule points' irradiance onto the receiver's basis; `rays` says how the shadow rays are
-/// decided, unless an earlier shot's verdicts for this link are `known`.
+/// at its first `check_points` check points ([`ReceiverNode::check_point`]; one whose `twins`
+/// entry names a rule point takes that point's answer), and projects the rule points'
+/// irradiance onto the receiver's basis; `rays` says how the shadow rays are decided, unless an
+/// earlier shot's verdicts for this link are `known`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
@@ -71,7 +68,7 @@ pub(super) fn receive(
     rule: &[QuadPoint],
     psi: &[[f64; MAX_FUNCTIONS]],
     nr: usize,
-    check_points: usize,
+    (check_points, twins): (usize, &CheckTwins),
     rays: Rays,
     known: Option<&KnownVerdicts>,
 ) -> Received {
@@ -95,14 +92,9 @@ pub(super) fn receive(
         form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
-    // A check point where a rule point lies (a parallelogram's centre at M2) sees what it saw.
-    let probes = corner_probe_points(root.shape);
-    let twin = |j: usize| {
-        rule.iter()
-            .position(|q| (q.st - probes[j]).abs().max_element() <= TWIN_EPS)
-    };
     for k in 0..out.points {
-        if let Some(i) = k.checked_sub(nk).and_then(twin) {
+        // A check point where a rule point lies (a parallelogram's centre at M2) sees what it saw.
+        if let Some(i) = k.checked_sub(nk).and_then(|j| twins[j]) {
             out.e[k] = out.e[i];
             out.seen[k] = out.seen[i];
             out.form_factors[k] = out.form_factors[i];
@@ -148,7 +140,7 @@ mod tests {
     use crate::domain::Shape;
     use crate::solver::far_field::tests::square_under_square;
     use crate::solver::hierarchy::Hierarchy;
-    use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
+    use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules, TWIN_EPS};
     use glam::DVec2;
 
     /// The receiver of `square_under_square` (its root node) asked at its rule and check points
@@ -167,7 +159,7 @@ mod tests {
                 rules.of(shape),
                 psi.of(shape),
                 bases.of(shape).len(),
-                corner_probe_points(shape).len(),
+                (corner_probe_points(shape).len(), rules.twins(shape)),
                 rays,
                 None,
             );
@@ -201,7 +193,7 @@ mod tests {
         let rules = Rules::new(2);
         let rule = rules.of(Shape::Parallelogram);
         let probes = corner_probe_points(Shape::Parallelogram);
-        let centre = |st: DVec2| (st - DVec2::splat(0.5)).length() < 1e-12;
+        let centre = |st: DVec2| (st - DVec2::splat(0.5)).abs().max_element() <= TWIN_EPS;
         let i = rule
             .iter()
             .position(|q| centre(q.st))
@@ -216,6 +208,11 @@ mod tests {
         assert_eq!(got.seen[k], got.seen[i]);
         assert_eq!(got.form_factors[k], got.form_factors[i]);
         assert!(got.form_factors[i] > 0.0);
+        // The blocker hides the source from some points and not others: the copy is the twin's.
+        assert!(
+            (got.rule_points..got.points).any(|m| m != k && got.e[m] != got.e[k]),
+            "another check point sees otherwise"
+        );
         // Nine rays (the source's M2 rule) from each point but the twin.
         assert_eq!(rays, 9 * (got.points as u64 - 1));
     }
