@@ -27,6 +27,10 @@ const _: () =
 /// A parallelogram's check points (`rules::corner_probe_points`: near the corners, the centre).
 pub const CHECK_POINTS: usize = 5;
 
+/// Most points a receiver node is asked at: its rule's, then its check points.
+pub const MAX_POINTS: usize = MAX_RULE_POINTS + CHECK_POINTS;
+const _: () = assert!(MAX_POINTS <= u8::MAX as usize);
+
 /// The face inside one element of an extended root.
 #[derive(Debug, Clone, Copy)]
 pub struct NodeCover {
@@ -40,6 +44,13 @@ pub struct NodeCover {
     /// The same for the element's check points (`CoverRules::check_points`): computed once
     /// with the node, not at every transfer to it (a closest point is O(n) in the face's edges).
     pub check_point: [DVec2; CHECK_POINTS],
+    /// Per point, in the order a receiver asks them (the rule's `n` points, then the check
+    /// points at `n + j`): the first point that stands in at the same place, the point itself if
+    /// none does. Off the face, several points often share their closest face point (beyond a
+    /// vertex of the face, or across an edge along the root's axes): a receiver asks the source
+    /// once for them all (`transfer::receive`). Set for stored nodes; a virtual source element
+    /// (which never receives) keeps every point its own.
+    pub alike: [u8; MAX_POINTS],
     /// `(1/|e|) * integral over (face inside e) of phi_i`, per basis function.
     pub moments: [f64; MAX_FUNCTIONS],
 }
@@ -97,6 +108,7 @@ impl NodeCover {
             alpha: [0.0; MAX_RULE_POINTS],
             visibility_point: [DVec2::ZERO; MAX_RULE_POINTS],
             check_point: rules.check_points.map(|st| map.apply(st)),
+            alike: std::array::from_fn(|k| k as u8),
             moments: [0.0; MAX_FUNCTIONS],
         };
         for (k, q) in rules.rule.iter().enumerate() {
@@ -107,7 +119,6 @@ impl NodeCover {
             ElementStatus::Full => {
                 cover.alpha[..n].fill(1.0);
                 cover.moments[0] = 1.0;
-                return (cover, None);
             }
             ElementStatus::Empty => {}
             ElementStatus::Partial => {
@@ -120,12 +131,21 @@ impl NodeCover {
                 face = Some(rings);
             }
         }
-        // An empty element never emits: as a virtual source it needs no stand-ins.
-        if stored || cover.status != ElementStatus::Empty {
+        // A full element's points are on the face; an empty element never emits: as a virtual
+        // source it needs no stand-ins.
+        let off_face = match cover.status {
+            ElementStatus::Full => false,
+            ElementStatus::Empty => stored,
+            ElementStatus::Partial => true,
+        };
+        if off_face {
             let points = cover.visibility_point[..n].iter_mut();
             for p in points.chain(cover.check_point.iter_mut()) {
                 *p = mask.closest_point(*p);
             }
+        }
+        if stored {
+            cover.alike = alike_points(&cover.visibility_point[..n], &cover.check_point);
         }
         (cover, face)
     }
@@ -134,6 +154,23 @@ impl NodeCover {
     pub fn emits(&self) -> bool {
         self.status != ElementStatus::Empty
     }
+}
+
+/// For the points `rule` then `check` (one list), the index of the first point equal to each.
+fn alike_points(rule: &[DVec2], check: &[DVec2]) -> [u8; MAX_POINTS] {
+    let mut points = [DVec2::ZERO; MAX_POINTS];
+    let n = rule.len() + check.len();
+    debug_assert!(n <= MAX_POINTS);
+    for (slot, &p) in points.iter_mut().zip(rule.iter().chain(check)) {
+        *slot = p;
+    }
+    std::array::from_fn(|k| {
+        let first = (k < n)
+            .then(|| points[..k].iter().position(|&p| p == points[k]))
+            .flatten()
+            .unwrap_or(k);
+        first as u8
+    })
 }
 
 /// `(1/|e|) * integral over (face inside e) of phi_i`, by signed triangles of the clipped face
@@ -404,18 +441,7 @@ pub(super) mod tests {
         let mask = holed(0.5);
         let basis = Basis::new(Shape::Parallelogram, 2);
         let r = rules(2);
-        // The root and its descendants to depth 3.
-        let mut level = vec![ChildMap::IDENTITY];
-        let mut maps = level.clone();
-        for _ in 0..3 {
-            level = level
-                .iter()
-                .flat_map(|m| {
-                    crate::solver::basis::child_maps(Shape::Parallelogram).map(|c| m.then(&c))
-                })
-                .collect();
-            maps.extend_from_slice(&level);
-        }
+        let maps = maps_to_depth(3);
         let (mut off_face, mut full) = (0, 0);
         // The centre check point and the M2 rule's centre point, twins (`rules::CheckTwins`).
         let centre = |st: &DVec2| *st == DVec2::splat(0.5);
@@ -449,6 +475,73 @@ pub(super) mod tests {
         }
         assert!(off_face > 0, "some check points lie in the hole");
         assert!(full > 0, "some nodes are fully covered");
+    }
+
+    /// The maps of a parallelogram root's nodes, the root and its descendants to `depth`.
+    pub(in crate::solver) fn maps_to_depth(depth: usize) -> Vec<ChildMap> {
+        let mut level = vec![ChildMap::IDENTITY];
+        let mut maps = level.clone();
+        for _ in 0..depth {
+            level = level
+                .iter()
+                .flat_map(|m| {
+                    crate::solver::basis::child_maps(Shape::Parallelogram).map(|c| m.then(&c))
+                })
+                .collect();
+            maps.extend_from_slice(&level);
+        }
+        maps
+    }
+
+    /// A stored node's `alike` names, for each point (rule points, then check points), the first
+    /// point with the same stand-in, found here by a map keyed by the stand-ins' bits: off the
+    /// face, some points share one at every order; on a full node only M2's centre does. A
+    /// virtual source element keeps every point its own.
+    #[test]
+    fn points_that_stand_in_alike_name_the_first_of_them() {
+        let mask = holed(0.5);
+        for order in 1..=3 {
+            let basis = Basis::new(Shape::Parallelogram, order);
+            let r = rules(order);
+            let n = r.rule.len();
+            let (mut shared_off_face, mut shared_full) = (0, 0);
+            for m in &maps_to_depth(3) {
+                let c = NodeCover::new(&mask, m, &r, &basis, true);
+                let points = c.visibility_point[..n].iter().chain(&c.check_point);
+                let mut first = std::collections::HashMap::new();
+                for (k, p) in points.enumerate() {
+                    // `+ 0.0`: a negative zero is the same point.
+                    let bits = ((p.x + 0.0).to_bits(), (p.y + 0.0).to_bits());
+                    let f = *first.entry(bits).or_insert(k);
+                    assert_eq!(usize::from(c.alike[k]), f, "M{order} {m:?} point {k}");
+                    if f != k && c.status == ElementStatus::Full {
+                        shared_full += 1;
+                    } else if f != k {
+                        shared_off_face += 1;
+                    }
+                }
+                let virtual_source = NodeCover::new(&mask, m, &r, &basis, false);
+                for (k, &a) in virtual_source.alike.iter().enumerate() {
+                    assert_eq!(usize::from(a), k, "M{order} {m:?}: a virtual source's own");
+                }
+            }
+            assert!(
+                shared_off_face > 0,
+                "M{order}: stand-ins off the face shared"
+            );
+            let full_nodes = maps_to_depth(3)
+                .iter()
+                .filter(|m| {
+                    NodeCover::new(&mask, m, &r, &basis, true).status == ElementStatus::Full
+                })
+                .count();
+            let centre_twin = usize::from(order == 2);
+            assert_eq!(
+                shared_full,
+                centre_twin * full_nodes,
+                "M{order}: full nodes"
+            );
+        }
     }
 
     #[test]

@@ -50,8 +50,9 @@ pub(super) struct Rules {
 
 /// For each check point of a shape, the index of the rule point at the same place (within
 /// [`TWIN_EPS`] in reference coordinates), if any: a parallelogram's centre at M2. A receiver
-/// takes that point's answer there instead of asking the source again
-/// (`transfer::tests::a_check_point_on_a_rule_point_takes_its_irradiance`).
+/// on a native root takes that point's answer there instead of asking the source again
+/// (`transfer::tests::a_check_point_on_a_rule_point_takes_its_irradiance`); an extended root's
+/// node finds it among the points that stand in alike (`NodeCover::alike`).
 pub(super) type CheckTwins = [Option<usize>; CHECK_POINTS];
 
 /// How close, in reference coordinates, a check point must lie to a rule point to be its twin
@@ -74,7 +75,10 @@ impl Rules {
         let parallelogram = rule(Shape::Parallelogram, order + 1);
         Rules {
             triangle_twins: check_twins(&triangle, corner_probe_points(Shape::Triangle)),
-            parallelogram_twins: check_twins(&parallelogram, &PARALLELOGRAM_CHECK_POINTS),
+            parallelogram_twins: check_twins(
+                &parallelogram,
+                corner_probe_points(Shape::Parallelogram),
+            ),
             triangle,
             cover: CoverRules {
                 rule: parallelogram,

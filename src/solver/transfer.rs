@@ -6,7 +6,6 @@
 //! points are recorded for the node's check after the shot.
 
 use super::basis::MAX_FUNCTIONS;
-use super::cover::{CHECK_POINTS, MAX_RULE_POINTS};
 use super::element::receiving_point;
 use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
@@ -17,7 +16,7 @@ use std::cell::Cell;
 
 /// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
 /// parallelogram's 5). Every evaluation zeroes its arrays of this length.
-pub(super) const MAX_POINTS: usize = MAX_RULE_POINTS + CHECK_POINTS;
+pub(super) use super::cover::MAX_POINTS;
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {
@@ -56,11 +55,38 @@ pub(super) struct Received {
     pub form_factors: [f64; MAX_POINTS],
 }
 
+impl Received {
+    /// Adds rule point `k`'s irradiance and form factor, as `e` and `form_factors` hold them, to
+    /// the projection `dh` and the exchange seen, at the point's weight (`q`), basis values
+    /// (`psi_k`, one per function), covered fraction of its zone and the node's `area`; counts
+    /// it among the `touching` points when the fallback stood in there.
+    fn add_rule_point(
+        &mut self,
+        k: usize,
+        q: &QuadPoint,
+        psi_k: &[f64],
+        covered: f64,
+        area: f64,
+        touching: bool,
+    ) {
+        self.exchange_seen_by_receiver += q.weight * covered * self.form_factors[k] * area;
+        self.touching += u64::from(touching);
+        let e = self.e[k];
+        for (dh, &psi) in self.dh.iter_mut().zip(psi_k) {
+            for ch in 0..3 {
+                dh[ch] += q.weight * psi * e[ch];
+            }
+        }
+    }
+}
+
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
-/// at its first `check_points` check points ([`ReceiverNode::check_point`]; one whose `twins`
-/// entry names a rule point takes that point's answer), and projects the rule points'
-/// irradiance onto the receiver's basis; `rays` says how the shadow rays are decided, unless an
-/// earlier shot's verdicts for this link are `known`.
+/// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
+/// rule points' irradiance onto the receiver's basis. A point that casts from where an earlier
+/// one does takes that point's answer, asking the source nothing: on an extended root's node
+/// the first with the same stand-in ([`NodeCover::alike`](super::cover::NodeCover)), on a native
+/// root a check point's rule twin (`twins`). `rays` says how the shadow rays are decided,
+/// unless an earlier shot's verdicts for this link are `known`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
@@ -92,12 +118,37 @@ pub(super) fn receive(
         form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
+    // The point asked before whose answer a point takes: on an extended root's node, the first
+    // with the same stand-in (`NodeCover::alike`); elsewhere a check point's rule twin.
+    let asked_before = |k: usize| -> Option<usize> {
+        let i = match receiver.cover {
+            Some(c) => usize::from(c.alike[k]),
+            None => k.checked_sub(nk).and_then(|j| twins[j]).unwrap_or(k),
+        };
+        debug_assert!(i <= k);
+        (i != k).then_some(i)
+    };
+    // Rule points the source had no answer for, and those where the touching fallback stood in.
+    let (mut unanswered, mut touching) = (0u32, 0u32);
+    let covered = |k: usize| receiver.cover.as_ref().map_or(1.0, |c| c.alpha[k]);
     for k in 0..out.points {
-        // A check point where a rule point lies (a parallelogram's centre at M2) sees what it saw.
-        if let Some(i) = k.checked_sub(nk).and_then(|j| twins[j]) {
+        if let Some(i) = asked_before(k) {
             out.e[k] = out.e[i];
             out.seen[k] = out.seen[i];
             out.form_factors[k] = out.form_factors[i];
+            // A rule point's twin is a rule point (it comes first): what the point adds is its
+            // own weight's share; the largest values and any-flags already hold the twin's.
+            if let Some(q) = rule.get(k).filter(|_| unanswered & (1 << i) == 0) {
+                let touched = touching & (1 << i) != 0;
+                out.add_rule_point(
+                    k,
+                    q,
+                    &psi[k][..nr],
+                    covered(k),
+                    receiver.patch.area,
+                    touched,
+                );
+            }
             continue;
         }
         let x = match rule.get(k) {
@@ -108,6 +159,7 @@ pub(super) fn receive(
         else {
             // No ray sampled what this point's neighbours in a child may see.
             out.all_pass = false;
+            unanswered |= 1 << k;
             continue;
         };
         out.all_pass &= p.any_visible && !p.any_blocked;
@@ -117,19 +169,20 @@ pub(super) fn receive(
         let Some(q) = rule.get(k) else {
             continue;
         };
-        let covered = receiver.cover.as_ref().map_or(1.0, |c| c.alpha[k]);
-        out.exchange_seen_by_receiver += q.weight * covered * p.form_factor * receiver.patch.area;
         out.unoccluded_max = out.unoccluded_max.max(p.unoccluded);
         out.any_visible |= p.any_visible;
         out.any_blocked |= p.any_blocked;
         out.source_side_err = out.source_side_err.max(p.source_side_err);
         out.coverage_err = out.coverage_err.max(p.coverage_err);
-        out.touching += u64::from(p.touching);
-        for a in 0..nr {
-            for ch in 0..3 {
-                out.dh[a][ch] += q.weight * psi[k][a] * p.e[ch];
-            }
-        }
+        touching |= u32::from(p.touching) << k;
+        out.add_rule_point(
+            k,
+            q,
+            &psi[k][..nr],
+            covered(k),
+            receiver.patch.area,
+            p.touching,
+        );
     }
     out
 }
@@ -141,7 +194,7 @@ mod tests {
     use crate::solver::far_field::tests::square_under_square;
     use crate::solver::hierarchy::Hierarchy;
     use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules, TWIN_EPS};
-    use glam::DVec2;
+    use glam::{DVec2, DVec3};
 
     /// The receiver of `square_under_square` (its root node) asked at its rule and check points
     /// with `rays`: what it received, and the rays traced.
@@ -215,6 +268,102 @@ mod tests {
         );
         // Nine rays (the source's M2 rule) from each point but the twin.
         assert_eq!(rays, 9 * (got.points as u64 - 1));
+    }
+
+    /// On an extended root's node that lies in the face's hole, points whose stand-ins coincide
+    /// (their closest face point) ask the source once: the rays are nine per distinct stand-in,
+    /// and every value is what asking each point gives (the same node with every point its
+    /// own, and each point's irradiance asked directly).
+    #[test]
+    fn points_that_stand_in_alike_ask_the_source_once() {
+        use crate::solver::cover::tests::{holed, maps_to_depth};
+        use crate::solver::cover::NodeCover;
+        use crate::solver::element::Patch;
+        let (bases, rules) = (Bases::new(2), Rules::new(2));
+        let psi = BasisAtControlPoints::new(&bases, &rules);
+        let shape = Shape::Parallelogram;
+        let basis = crate::solver::basis::Basis::new(shape, 2);
+        let mask = holed(0.5);
+        // The node whose points share the most stand-ins.
+        let shared = |c: &NodeCover| {
+            (0..MAX_POINTS)
+                .filter(|&k| usize::from(c.alike[k]) != k)
+                .count()
+        };
+        let (map, cover) = maps_to_depth(2)
+            .into_iter()
+            .map(|m| (m, NodeCover::new(&mask, &m, &rules.cover, &basis, true)))
+            .max_by_key(|(_, c)| shared(c))
+            .expect("nodes");
+        assert!(shared(&cover) >= 2, "{cover:?}");
+        let mut own = cover;
+        own.alike = std::array::from_fn(|k| k as u8);
+        square_under_square(true, |source, receiver, visibility| {
+            let mut root = receiver.clone();
+            root.mask = Some(mask.clone());
+            let ask = |cover: &NodeCover| {
+                let node = ReceiverNode {
+                    root: &root,
+                    map,
+                    depth: 2,
+                    patch: Patch::new(&root, &map),
+                    cover: Some(cover),
+                    reflectance_deviation: None,
+                };
+                let before = visibility.rays_traced();
+                let got = receive(
+                    source,
+                    &node,
+                    rules.of(shape),
+                    psi.of(shape),
+                    bases.of(shape).len(),
+                    (corner_probe_points(shape).len(), rules.twins(shape)),
+                    Rays::Trace,
+                    None,
+                );
+                (got, visibility.rays_traced() - before)
+            };
+            let (got, rays) = ask(&cover);
+            let (each, each_rays) = ask(&own);
+            let nk = got.rule_points;
+            let stand_ins: Vec<DVec3> = (0..got.points)
+                .map(|k| match k.checked_sub(nk) {
+                    None => root.frame.point(cover.visibility_point[k]),
+                    Some(j) => root.frame.point(cover.check_point[j]),
+                })
+                .collect();
+            let mut distinct = stand_ins.clone();
+            distinct.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).expect("finite"));
+            distinct.dedup();
+            assert_eq!(rays, 9 * distinct.len() as u64);
+            assert_eq!(each_rays, 9 * got.points as u64);
+            assert!(distinct.len() < got.points);
+            let ignore = source.ignored_faces(root.face.0);
+            for (k, &x) in stand_ins.iter().enumerate() {
+                let p = source
+                    .irradiance_at(x, root.normal, ignore, Rays::Trace, None)
+                    .expect("the source is in front of every point");
+                assert_eq!((got.e[k], got.seen[k]), (p.e, p.seen), "point {k}");
+                assert_eq!(got.form_factors[k], p.form_factor, "point {k}");
+            }
+            assert!(
+                got.any_visible && got.any_blocked,
+                "the blocker's shadow's edge"
+            );
+            assert_eq!(got.e, each.e);
+            assert_eq!(got.dh, each.dh);
+            assert_eq!(got.seen, each.seen);
+            assert_eq!(got.form_factors, each.form_factors);
+            assert_eq!(
+                got.exchange_seen_by_receiver,
+                each.exchange_seen_by_receiver
+            );
+            assert_eq!(
+                (got.unoccluded_max, got.source_side_err, got.coverage_err),
+                (each.unoccluded_max, each.source_side_err, each.coverage_err)
+            );
+            assert_eq!((got.all_pass, got.touching), (each.all_pass, each.touching));
+        });
     }
 
     /// One ray per point, to the source's centre: as many rays as points; with nothing in the
