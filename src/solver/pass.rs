@@ -33,6 +33,15 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+/// A receiver's cost weight in a shot's progress (the fraction of the shot done, which the ETA
+/// reads) is `1 + (p / threshold)^RECEIVER_COST_EXPONENT`, `p` what it would receive with no
+/// occluder. Linear, the sky's most exposed receivers (often the cheapest) held so much of the
+/// weight that a 4 s solve's ETA ran long by more than 2 while one slow shadowed receiver was in
+/// progress; a square root ran short by nearly 2 on the same scene (docs/performance-notes.md,
+/// "Points that stand in alike"). Fitted on the scaling benchmark's scenes, like the
+/// forecast's constants.
+const RECEIVER_COST_EXPONENT: f64 = 0.75;
+
 /// At most this many roots shoot in one indirect pass (`pick_shooters`): a pass's fixed costs
 /// (the plan over every root, starting and ending a parallel loop, its last receivers) are paid
 /// once for all of them.
@@ -227,7 +236,9 @@ pub(super) fn shoot(
         .collect();
     // Per root and shooter, what it would receive with no occluder (-1 when not visited: it
     // does not face the shooter, or shoots in this pass): its cost grows with it over the
-    // threshold (links under a soft shadow), and its reflectance sends it back. Beside it, bit
+    // threshold (links under a soft shadow), slower than linearly (a sky-facing roof with
+    // nothing over it takes its light on a few links: the weight is that ratio to the power
+    // 3/4, `RECEIVER_COST_EXPONENT`), and its reflectance sends it back. Beside it, bit
     // `j` set: the root takes shooter `j`'s light as one far link (`takes_far_link`, decided
     // here once for the plan and the loop).
     let (received, far_links): (Vec<[f64; PASS_MAX]>, Vec<u8>) = hierarchies
@@ -255,7 +266,7 @@ pub(super) fn shoot(
     let receivers = (0..roots.len()).filter(|&ri| visited(ri)).count() as u64;
     let weight = |p: f64| {
         if p >= 0.0 {
-            1.0 + p / ctx.threshold
+            1.0 + (p / ctx.threshold).powf(RECEIVER_COST_EXPONENT)
         } else {
             0.0
         }
