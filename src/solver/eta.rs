@@ -56,8 +56,8 @@ const MIN_PRICED_RAYS: f64 = 1e4;
 /// and the power the shots send falls with the unshot power.
 /// - A shot in progress ends after `s (1 - f) / f` more seconds, `s` its seconds so far and `f`
 ///   the fraction of its cost done (`s` again while nothing is); a receiver's cost is weighed
-///   as `1 +` what it would receive with no occluder over the threshold, to the power 3/4
-///   (`pass.rs`, `RECEIVER_COST_EXPONENT`).
+///   as `1 +` a power below 1 of what it would receive with no occluder over the threshold
+///   (`pass.rs`, `receiver_cost_weight`).
 /// - While lights and emitters shoot (the first shot of a sky panel can be most of a solve), the
 ///   shots of their kind still queued are taken to be like this one, and what follows is the
 ///   *prior*: the indirect phase's foreseen cost (`indirect_forecast.rs`, in rays) at the

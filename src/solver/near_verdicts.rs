@@ -23,9 +23,9 @@
 //! light does not, the ray count may). An entry is written by the thread that holds the
 //! receiver's hierarchy, never changed but for the verdict rays' answer, which it gains once.
 
+use super::cover::MAX_POINTS;
 use super::shot_record::SourcePath;
 use super::source::KnownPoint;
-use super::transfer::MAX_POINTS;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 

@@ -33,14 +33,24 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
-/// A receiver's cost weight in a shot's progress (the fraction of the shot done, which the ETA
-/// reads) is `1 + (p / threshold)^RECEIVER_COST_EXPONENT`, `p` what it would receive with no
-/// occluder. Linear, the sky's most exposed receivers (often the cheapest) held so much of the
-/// weight that a 4 s solve's ETA ran long by more than 2 while one slow shadowed receiver was in
-/// progress; a square root ran short by nearly 2 on the same scene (docs/performance-notes.md,
-/// "Points that stand in alike"). Fitted on the scaling benchmark's scenes, like the
-/// forecast's constants.
+/// The power of a receiver's received share in its cost weight ([`receiver_cost_weight`]):
+/// below 1, as a sky's most exposed receivers take their light on few links. Fitted on the
+/// scaling benchmark's scenes so that the ETA stays within 2 of the time left on each
+/// (docs/performance-notes.md, "Points that stand in alike ask once; receivers weighed by a
+/// power 3/4"), like the forecast's constants.
 const RECEIVER_COST_EXPONENT: f64 = 0.75;
+
+/// A receiver's weight in a shot's cost, which the shot's progress (the fraction done the ETA
+/// reads) counts: `1 + (p / threshold)^RECEIVER_COST_EXPONENT`, `p` what it would receive with
+/// no occluder (its links grow with it, slower than it), 0 for a receiver the shot does not
+/// visit (`p < 0`). Pinned by `a_receivers_cost_weight_grows_slower_than_its_share`.
+fn receiver_cost_weight(p: f64, threshold: f64) -> f64 {
+    if p >= 0.0 {
+        1.0 + (p / threshold).powf(RECEIVER_COST_EXPONENT)
+    } else {
+        0.0
+    }
+}
 
 /// At most this many roots shoot in one indirect pass (`pick_shooters`): a pass's fixed costs
 /// (the plan over every root, starting and ending a parallel loop, its last receivers) are paid
@@ -236,9 +246,8 @@ pub(super) fn shoot(
         .collect();
     // Per root and shooter, what it would receive with no occluder (-1 when not visited: it
     // does not face the shooter, or shoots in this pass): its cost grows with it over the
-    // threshold (links under a soft shadow), slower than linearly (a sky-facing roof with
-    // nothing over it takes its light on a few links: the weight is that ratio to the power
-    // 3/4, `RECEIVER_COST_EXPONENT`), and its reflectance sends it back. Beside it, bit
+    // threshold (links under a soft shadow), slower than linearly (`receiver_cost_weight`),
+    // and its reflectance sends it back. Beside it, bit
     // `j` set: the root takes shooter `j`'s light as one far link (`takes_far_link`, decided
     // here once for the plan and the loop).
     let (received, far_links): (Vec<[f64; PASS_MAX]>, Vec<u8>) = hierarchies
@@ -264,14 +273,12 @@ pub(super) fn shoot(
         .unzip();
     let visited = |ri: usize| received[ri][..k].iter().any(|&p| p >= 0.0);
     let receivers = (0..roots.len()).filter(|&ri| visited(ri)).count() as u64;
-    let weight = |p: f64| {
-        if p >= 0.0 {
-            1.0 + (p / ctx.threshold).powf(RECEIVER_COST_EXPONENT)
-        } else {
-            0.0
-        }
+    let weights = |ri: usize| {
+        received[ri][..k]
+            .iter()
+            .map(|&p| receiver_cost_weight(p, ctx.threshold))
+            .sum::<f64>()
     };
-    let weights = |ri: usize| received[ri][..k].iter().map(|&p| weight(p)).sum::<f64>();
     let units = CostUnits::new((0..roots.len()).map(weights).sum());
     let expected = |ri: usize| {
         let p: f64 = received[ri][..k].iter().map(|&p| p.max(0.0)).sum();
@@ -485,6 +492,22 @@ pub(super) fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A receiver not visited weighs nothing; one that would receive nothing, 1; one that would
+    /// receive the threshold, 2; above, its weight grows slower than what it would receive.
+    #[test]
+    fn a_receivers_cost_weight_grows_slower_than_its_share() {
+        let t = 1e-3;
+        assert_eq!(receiver_cost_weight(-1.0, t), 0.0);
+        assert_eq!(receiver_cost_weight(0.0, t), 1.0);
+        assert_eq!(receiver_cost_weight(t, t), 2.0);
+        let (w1, w2) = (
+            receiver_cost_weight(1e4 * t, t),
+            receiver_cost_weight(1e6 * t, t),
+        );
+        assert!(w2 > w1 && w2 - 1.0 < 100.0 * (w1 - 1.0), "{w1} {w2}");
+        assert!(((w2 - 1.0) / (w1 - 1.0) - 100f64.powf(RECEIVER_COST_EXPONENT)).abs() < 1e-9);
+    }
     use crate::solver::element::tests::parallelogram_root;
     use glam::DVec3;
 

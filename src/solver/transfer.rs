@@ -2,8 +2,10 @@
 //! for the node-sum check, at its check points near the corners), the values projected onto the
 //! receiver's basis, and what the points' rays said, as [`Received`] for the oracle.
 //!
-//! Invariant: only the rule points enter the projection `dh` and the link's own oracle; the check
-//! points are recorded for the node's check after the shot.
+//! Invariants: only the rule points enter the projection `dh` and the link's own oracle; the check
+//! points are recorded for the node's check after the shot. A point takes an earlier point's
+//! answer only where it would be asked at the same place (the same stand-in), so the answers are
+//! those of asking every point.
 
 use super::basis::MAX_FUNCTIONS;
 use super::element::receiving_point;
@@ -14,9 +16,10 @@ use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
 use std::cell::Cell;
 
-/// Most points a receiver is asked at: its rule's, then its check points (M3's 16 and a
-/// parallelogram's 5). Every evaluation zeroes its arrays of this length.
-pub(super) use super::cover::MAX_POINTS;
+// Every evaluation zeroes its arrays of `MAX_POINTS` (a receiver's rule and check points); the
+// points answered and touching are bits of a `u32`.
+use super::cover::MAX_POINTS;
+const _: () = assert!(MAX_POINTS <= u32::BITS as usize);
 
 /// What a source delivered at one receiver node's points.
 pub(super) struct Received {
@@ -84,7 +87,7 @@ impl Received {
 /// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
 /// rule points' irradiance onto the receiver's basis. A point that casts from where an earlier
 /// one does takes that point's answer, asking the source nothing: on an extended root's node
-/// the first with the same stand-in ([`NodeCover::alike`](super::cover::NodeCover)), on a native
+/// the first with the same stand-in ([`NodeCover::alike`](super::cover::NodeCover::alike)), on a native
 /// root a check point's rule twin (`twins`). `rays` says how the shadow rays are decided,
 /// unless an earlier shot's verdicts for this link are `known`.
 #[allow(clippy::too_many_arguments)]
@@ -136,8 +139,8 @@ pub(super) fn receive(
             out.e[k] = out.e[i];
             out.seen[k] = out.seen[i];
             out.form_factors[k] = out.form_factors[i];
-            // A rule point's twin is a rule point (it comes first): what the point adds is its
-            // own weight's share; the largest values and any-flags already hold the twin's.
+            // A rule point copies a rule point (they come first): what it adds is its own
+            // weight's share; the largest values and any-flags already hold the copied one's.
             if let Some(q) = rule.get(k).filter(|_| unanswered & (1 << i) == 0) {
                 let touched = touching & (1 << i) != 0;
                 out.add_rule_point(
@@ -196,27 +199,37 @@ mod tests {
     use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules, TWIN_EPS};
     use glam::{DVec2, DVec3};
 
+    /// `node` asked about `source` at its M2 rule and check points with `rays`: what it
+    /// received, and the rays `visibility` traced.
+    fn receive_counting(
+        source: &impl Source,
+        node: &ReceiverNode,
+        visibility: &crate::solver::visibility::Visibility,
+        rays: Rays,
+    ) -> (Received, u64) {
+        let (bases, rules) = (Bases::new(2), Rules::new(2));
+        let psi = BasisAtControlPoints::new(&bases, &rules);
+        let shape = node.root.shape;
+        let before = visibility.rays_traced();
+        let got = receive(
+            source,
+            node,
+            rules.of(shape),
+            psi.of(shape),
+            bases.of(shape).len(),
+            (corner_probe_points(shape).len(), rules.twins(shape)),
+            rays,
+            None,
+        );
+        (got, visibility.rays_traced() - before)
+    }
+
     /// The receiver of `square_under_square` (its root node) asked at its rule and check points
     /// with `rays`: what it received, and the rays traced.
     fn received(blocked: bool, rays: Rays) -> (Received, u64) {
-        let (bases, rules) = (Bases::new(2), Rules::new(2));
-        let psi = BasisAtControlPoints::new(&bases, &rules);
-        let shape = Shape::Parallelogram;
         square_under_square(blocked, |source, root, visibility| {
-            let h = Hierarchy::new(bases.of(shape).len());
-            let node = ReceiverNode::new(root, &h, 0);
-            let before = visibility.rays_traced();
-            let got = receive(
-                source,
-                &node,
-                rules.of(shape),
-                psi.of(shape),
-                bases.of(shape).len(),
-                (corner_probe_points(shape).len(), rules.twins(shape)),
-                rays,
-                None,
-            );
-            (got, visibility.rays_traced() - before)
+            let h = Hierarchy::new(Bases::new(2).of(root.shape).len());
+            receive_counting(source, &ReceiverNode::new(root, &h, 0), visibility, rays)
         })
     }
 
@@ -270,32 +283,32 @@ mod tests {
         assert_eq!(rays, 9 * (got.points as u64 - 1));
     }
 
-    /// On an extended root's node that lies in the face's hole, points whose stand-ins coincide
-    /// (their closest face point) ask the source once: the rays are nine per distinct stand-in,
-    /// and every value is what asking each point gives (the same node with every point its
-    /// own, and each point's irradiance asked directly).
+    /// On an extended root's node that straddles the border of the face's hole, points whose
+    /// stand-ins coincide (their closest face point) ask the source once: the rays are nine per
+    /// distinct stand-in, and every value is what asking each point gives (the same node with
+    /// every point its own, and each point's irradiance asked directly), among them a copied
+    /// rule point's share of the projection and of the exchange seen (its zone partly covered).
     #[test]
     fn points_that_stand_in_alike_ask_the_source_once() {
         use crate::solver::cover::tests::{holed, maps_to_depth};
         use crate::solver::cover::NodeCover;
         use crate::solver::element::Patch;
-        let (bases, rules) = (Bases::new(2), Rules::new(2));
-        let psi = BasisAtControlPoints::new(&bases, &rules);
+        let rules = Rules::new(2);
         let shape = Shape::Parallelogram;
         let basis = crate::solver::basis::Basis::new(shape, 2);
-        let mask = holed(0.5);
-        // The node whose points share the most stand-ins.
-        let shared = |c: &NodeCover| {
-            (0..MAX_POINTS)
-                .filter(|&k| usize::from(c.alike[k]) != k)
-                .count()
+        let mask = holed(0.4);
+        // Rule points that take an earlier point's answer and weigh in the projection.
+        let copied = |c: &NodeCover| -> Vec<usize> {
+            (0..rules.of(shape).len())
+                .filter(|&k| usize::from(c.alike[k]) != k && c.alpha[k] > 0.0)
+                .collect()
         };
-        let (map, cover) = maps_to_depth(2)
+        let (map, cover) = maps_to_depth(3)
             .into_iter()
             .map(|m| (m, NodeCover::new(&mask, &m, &rules.cover, &basis, true)))
-            .max_by_key(|(_, c)| shared(c))
+            .max_by_key(|(_, c)| copied(c).len())
             .expect("nodes");
-        assert!(shared(&cover) >= 2, "{cover:?}");
+        assert!(!copied(&cover).is_empty(), "{cover:?}");
         let mut own = cover;
         own.alike = std::array::from_fn(|k| k as u8);
         square_under_square(true, |source, receiver, visibility| {
@@ -305,23 +318,12 @@ mod tests {
                 let node = ReceiverNode {
                     root: &root,
                     map,
-                    depth: 2,
+                    depth: 3,
                     patch: Patch::new(&root, &map),
                     cover: Some(cover),
                     reflectance_deviation: None,
                 };
-                let before = visibility.rays_traced();
-                let got = receive(
-                    source,
-                    &node,
-                    rules.of(shape),
-                    psi.of(shape),
-                    bases.of(shape).len(),
-                    (corner_probe_points(shape).len(), rules.twins(shape)),
-                    Rays::Trace,
-                    None,
-                );
-                (got, visibility.rays_traced() - before)
+                receive_counting(source, &node, visibility, Rays::Trace)
             };
             let (got, rays) = ask(&cover);
             let (each, each_rays) = ask(&own);
@@ -346,10 +348,10 @@ mod tests {
                 assert_eq!((got.e[k], got.seen[k]), (p.e, p.seen), "point {k}");
                 assert_eq!(got.form_factors[k], p.form_factor, "point {k}");
             }
-            assert!(
-                got.any_visible && got.any_blocked,
-                "the blocker's shadow's edge"
-            );
+            assert!(got.exchange_seen_by_receiver > 0.0);
+            for k in copied(&cover) {
+                assert_ne!(got.e[k], [0.0; 3], "copied point {k} receives");
+            }
             assert_eq!(got.e, each.e);
             assert_eq!(got.dh, each.dh);
             assert_eq!(got.seen, each.seen);
