@@ -159,8 +159,10 @@ impl NodeCover {
     }
 }
 
-/// For the points `rule` then `check` (one list), the index of the first point equal to each.
-fn alike_points(rule: &[DVec2], check: &[DVec2]) -> [u8; MAX_POINTS] {
+/// For each of the points `rule` then `check` (one list), the index of the first point equal to
+/// it (itself if none): a node's stand-ins (`NodeCover::alike`), or a shape's reference points
+/// (`Rules::alike`).
+pub(super) fn alike_points(rule: &[DVec2], check: &[DVec2]) -> [u8; MAX_POINTS] {
     let mut points = [DVec2::ZERO; MAX_POINTS];
     let n = rule.len() + check.len();
     debug_assert!(n <= MAX_POINTS);
@@ -446,7 +448,7 @@ pub(super) mod tests {
         let r = rules(2);
         let maps = maps_to_depth(3);
         let (mut off_face, mut full) = (0, 0);
-        // The centre check point and the M2 rule's centre point, twins (`rules::CheckTwins`).
+        // The centre check point and the M2 rule's centre point, alike (`Rules::alike`).
         let centre = |st: &DVec2| *st == DVec2::splat(0.5);
         let centre_check = r
             .check_points

@@ -315,7 +315,7 @@ impl ShotContext<'_> {
             self.rules.of(shape),
             self.psi.of(shape),
             self.bases.of(shape).len(),
-            (check_points, self.rules.twins(shape)),
+            (check_points, self.rules.alike(shape)),
             rays,
             known,
         );

@@ -1,13 +1,13 @@
 //! The solver's fixed tables at one order: the bases of both shapes ([`Bases`]), their quadrature
 //! rules with the zones of influence ([`Rules`]), the receiver's basis at its control and corner
 //! probe points ([`BasisAtControlPoints`]), the corner probe points themselves, and which of
-//! them are rule points' twins ([`CheckTwins`]).
+//! a shape's points lie where an earlier one does ([`Rules::alike`]).
 //!
 //! Invariant: `BasisAtControlPoints::of(shape)` holds one row per rule point of `Rules::of(shape)`,
 //! then one per [`corner_probe_points`]`(shape)`, in that order (the oracle indexes it so).
 
 use super::basis::{Basis, MAX_FUNCTIONS};
-use super::cover::{CoverRules, CHECK_POINTS};
+use super::cover::{alike_points, CoverRules, CHECK_POINTS, MAX_POINTS};
 use super::kernel;
 use super::quadrature::{rule, zones_of_influence, QuadPoint};
 use crate::domain::Shape;
@@ -42,31 +42,15 @@ pub(super) struct Rules {
     /// Beyond how many radii of a source element its rule gives the form factor
     /// ([`kernel::rule_suffices_radii`]).
     pub(super) form_factor_radii: f64,
-    /// Per shape, for each of its [`corner_probe_points`], the rule point at the same place
-    /// ([`check_twins`]).
-    triangle_twins: CheckTwins,
-    parallelogram_twins: CheckTwins,
+    /// Per shape, [`Rules::alike`].
+    triangle_alike: [u8; MAX_POINTS],
+    parallelogram_alike: [u8; MAX_POINTS],
 }
 
-/// For each check point of a shape, the index of the rule point at the same place (within
-/// [`TWIN_EPS`] in reference coordinates), if any: a parallelogram's centre at M2. A receiver
-/// on a native root takes that point's answer there instead of asking the source again
-/// (`transfer::tests::a_check_point_on_a_rule_point_takes_its_irradiance`); an extended root's
-/// node finds it among the points that stand in alike (`NodeCover::alike`).
-pub(super) type CheckTwins = [Option<usize>; CHECK_POINTS];
-
-/// How close, in reference coordinates, a check point must lie to a rule point to be its twin
-/// (the same point but for rounding; `twins_are_the_centre_at_m2_only`).
-pub(super) const TWIN_EPS: f64 = 1e-12;
-
-/// The [`CheckTwins`] of `rule` and the check points `probes`.
-fn check_twins(rule: &[QuadPoint], probes: &[DVec2]) -> CheckTwins {
-    debug_assert!(probes.len() <= CHECK_POINTS);
-    std::array::from_fn(|j| {
-        let p = probes.get(j)?;
-        rule.iter()
-            .position(|q| (q.st - *p).abs().max_element() <= TWIN_EPS)
-    })
+/// [`Rules::alike`] of `shape` with the rule `rule`.
+fn alike_in_reference(rule: &[QuadPoint], shape: Shape) -> [u8; MAX_POINTS] {
+    let st: Vec<DVec2> = rule.iter().map(|q| q.st).collect();
+    alike_points(&st, corner_probe_points(shape))
 }
 
 impl Rules {
@@ -74,11 +58,8 @@ impl Rules {
         let triangle = rule(Shape::Triangle, order + 1);
         let parallelogram = rule(Shape::Parallelogram, order + 1);
         Rules {
-            triangle_twins: check_twins(&triangle, corner_probe_points(Shape::Triangle)),
-            parallelogram_twins: check_twins(
-                &parallelogram,
-                corner_probe_points(Shape::Parallelogram),
-            ),
+            triangle_alike: alike_in_reference(&triangle, Shape::Triangle),
+            parallelogram_alike: alike_in_reference(&parallelogram, Shape::Parallelogram),
             triangle,
             cover: CoverRules {
                 rule: parallelogram,
@@ -89,11 +70,16 @@ impl Rules {
             form_factor_radii: kernel::rule_suffices_radii(order),
         }
     }
-    /// The check points of `shape` that are rule points ([`CheckTwins`]).
-    pub(super) fn twins(&self, shape: Shape) -> &CheckTwins {
+    /// For each of `shape`'s points (its rule's, then its [`corner_probe_points`]), the first
+    /// point at the same place in reference coordinates, itself if none: a parallelogram's
+    /// centre at M2, which is a rule point and a check point. A receiver on a native root takes
+    /// that point's answer instead of asking the source again
+    /// (`transfer::tests::a_check_point_on_a_rule_point_takes_its_irradiance`); an extended
+    /// root's node takes its own stand-ins' (`NodeCover::alike`), computed alike.
+    pub(super) fn alike(&self, shape: Shape) -> &[u8; MAX_POINTS] {
         match shape {
-            Shape::Triangle => &self.triangle_twins,
-            Shape::Parallelogram => &self.parallelogram_twins,
+            Shape::Triangle => &self.triangle_alike,
+            Shape::Parallelogram => &self.parallelogram_alike,
         }
     }
     pub(super) fn of(&self, shape: Shape) -> &[QuadPoint] {
@@ -174,22 +160,25 @@ pub(super) const CORNER_INSET: f64 = 0.02;
 mod tests {
     use super::*;
 
-    /// A check point is a rule point's twin only at a parallelogram's centre at M2 (the middle
-    /// of the 3 x 3 Gauss rule); no triangle's, and no other order's.
+    /// A point lies where an earlier one does only at a parallelogram's centre at M2 (the
+    /// middle of the 3 x 3 Gauss rule, and a check point): no triangle's, no other order's.
     #[test]
-    fn twins_are_the_centre_at_m2_only() {
+    fn points_alike_are_the_centre_at_m2_only() {
         for order in 1..=3 {
             let r = Rules::new(order);
-            assert_eq!(r.twins(Shape::Triangle), &[None; CHECK_POINTS], "M{order}");
-            let twins = r.twins(Shape::Parallelogram);
-            for (j, twin) in twins.iter().enumerate() {
-                let centre = PARALLELOGRAM_CHECK_POINTS[j] == DVec2::splat(0.5);
-                match twin {
-                    Some(i) => {
-                        assert!(order == 2 && centre, "M{order} check point {j}");
-                        assert_eq!(r.cover.rule[*i].st, DVec2::splat(0.5));
-                    }
-                    None => assert!(order != 2 || !centre, "M{order} check point {j}"),
+            let own: [u8; MAX_POINTS] = std::array::from_fn(|k| k as u8);
+            assert_eq!(r.alike(Shape::Triangle), &own, "M{order}");
+            let n = r.cover.rule.len();
+            let alike = r.alike(Shape::Parallelogram);
+            for (k, &a) in alike.iter().enumerate() {
+                let centre_check = k >= n
+                    && k < n + CHECK_POINTS
+                    && PARALLELOGRAM_CHECK_POINTS[k - n] == DVec2::splat(0.5);
+                if usize::from(a) == k {
+                    assert!(order != 2 || !centre_check, "M{order} point {k}");
+                } else {
+                    assert!(order == 2 && centre_check, "M{order} point {k}");
+                    assert_eq!(r.cover.rule[usize::from(a)].st, DVec2::splat(0.5));
                 }
             }
         }

@@ -11,7 +11,6 @@ use super::basis::MAX_FUNCTIONS;
 use super::element::receiving_point;
 use super::near_verdicts::KnownVerdicts;
 use super::quadrature::QuadPoint;
-use super::rules::CheckTwins;
 use super::source::{Rays, ReceiverNode, Source};
 use crate::scene::Rgb;
 use std::cell::Cell;
@@ -88,7 +87,7 @@ impl Received {
 /// rule points' irradiance onto the receiver's basis. A point that casts from where an earlier
 /// one does takes that point's answer, asking the source nothing: on an extended root's node
 /// the first with the same stand-in ([`NodeCover::alike`](super::cover::NodeCover::alike)), on a native
-/// root a check point's rule twin (`twins`). `rays` says how the shadow rays are decided,
+/// root the first at the same place (`alike`, [`Rules::alike`](super::rules::Rules::alike)). `rays` says how the shadow rays are decided,
 /// unless an earlier shot's verdicts for this link are `known`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
@@ -97,7 +96,7 @@ pub(super) fn receive(
     rule: &[QuadPoint],
     psi: &[[f64; MAX_FUNCTIONS]],
     nr: usize,
-    (check_points, twins): (usize, &CheckTwins),
+    (check_points, alike): (usize, &[u8; MAX_POINTS]),
     rays: Rays,
     known: Option<&KnownVerdicts>,
 ) -> Received {
@@ -122,12 +121,10 @@ pub(super) fn receive(
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
     // The point asked before whose answer a point takes: on an extended root's node, the first
-    // with the same stand-in (`NodeCover::alike`); elsewhere a check point's rule twin.
+    // with the same stand-in; elsewhere the first at the same place (`alike`).
+    let alike = receiver.cover.map_or(alike, |c| &c.alike);
     let asked_before = |k: usize| -> Option<usize> {
-        let i = match receiver.cover {
-            Some(c) => usize::from(c.alike[k]),
-            None => k.checked_sub(nk).and_then(|j| twins[j]).unwrap_or(k),
-        };
+        let i = usize::from(alike[k]);
         debug_assert!(i <= k);
         (i != k).then_some(i)
     };
@@ -196,7 +193,7 @@ mod tests {
     use crate::domain::Shape;
     use crate::solver::far_field::tests::square_under_square;
     use crate::solver::hierarchy::Hierarchy;
-    use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules, TWIN_EPS};
+    use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
     use glam::{DVec2, DVec3};
 
     /// `node` asked about `source` at its M2 rule and check points with `rays`: what it
@@ -217,7 +214,7 @@ mod tests {
             rules.of(shape),
             psi.of(shape),
             bases.of(shape).len(),
-            (corner_probe_points(shape).len(), rules.twins(shape)),
+            (corner_probe_points(shape).len(), rules.alike(shape)),
             rays,
             None,
         );
@@ -259,7 +256,7 @@ mod tests {
         let rules = Rules::new(2);
         let rule = rules.of(Shape::Parallelogram);
         let probes = corner_probe_points(Shape::Parallelogram);
-        let centre = |st: DVec2| (st - DVec2::splat(0.5)).abs().max_element() <= TWIN_EPS;
+        let centre = |st: DVec2| st == DVec2::splat(0.5);
         let i = rule
             .iter()
             .position(|q| centre(q.st))
