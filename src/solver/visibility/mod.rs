@@ -385,8 +385,14 @@ impl Visibility {
                 let (first, count) = node.child_primitives(slot);
                 for prim in first..first + count {
                     let tri = &self.tris[prim as usize];
-                    for i in bits(rays & open) {
-                        if seg(i).blocked_by(tri, ignore) {
+                    let candidates = rays & open;
+                    if candidates == 0 || tri.face == ignore[0] || tri.face == ignore[1] {
+                        continue;
+                    }
+                    // What the segment test reads of the packet's start, once per triangle.
+                    let from = TriangleFrom::new(p, tri.v0, tri.e1, tri.e2);
+                    for i in bits(candidates) {
+                        if seg(i).reaches(from.hit(seg(i).dir, tri.e1, tri.e2)) {
                             open &= !(1 << i);
                             LAST_BLOCKER.with(|c| c.set(prim));
                         }
@@ -449,8 +455,13 @@ impl Segment {
     fn blocked_by(&self, tri: &Tri, ignore: [u32; 2]) -> bool {
         tri.face != ignore[0]
             && tri.face != ignore[1]
-            && intersect_edges(self.p, self.dir, tri.v0, tri.e1, tri.e2)
-                .is_some_and(|t| t > self.tmin && t < self.tmax)
+            && self.reaches(intersect_edges(self.p, self.dir, tri.v0, tri.e1, tri.e2))
+    }
+
+    /// True when a hit at ray parameter `t` counts: strictly within the segment's range.
+    #[inline(always)]
+    fn reaches(&self, t: Option<f64>) -> bool {
+        t.is_some_and(|t| t > self.tmin && t < self.tmax)
     }
 }
 
@@ -564,23 +575,53 @@ pub(crate) fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64
 /// (the same operations in the same order: the same verdicts, bit for bit).
 #[inline(always)]
 fn intersect_edges(origin: DVec3, dir: DVec3, v0: DVec3, e1: DVec3, e2: DVec3) -> Option<f64> {
-    let p = dir.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-300 {
-        return None;
+    TriangleFrom::new(origin, v0, e1, e2).hit(dir, e1, e2)
+}
+
+/// What Möller-Trumbore reads of a ray's origin and a triangle alone (`s = origin - v0`,
+/// `q = s x e1`, `e2 . q`): a packet's rays share their origin, so a triangle computes it once
+/// for all of them. [`intersect_edges`] is this and [`TriangleFrom::hit`]: one body, the same
+/// operations in the same order for a packet and a single ray
+/// (`packet_verdicts_are_the_single_rays`).
+struct TriangleFrom {
+    s: DVec3,
+    q: DVec3,
+    /// `e2 . q`: the ray parameter of the hit times the determinant.
+    t_det: f64,
+}
+
+impl TriangleFrom {
+    #[inline(always)]
+    fn new(origin: DVec3, v0: DVec3, e1: DVec3, e2: DVec3) -> Self {
+        let s = origin - v0;
+        let q = s.cross(e1);
+        TriangleFrom {
+            s,
+            q,
+            t_det: e2.dot(q),
+        }
     }
-    let inv = 1.0 / det;
-    let s = origin - v0;
-    let a = s.dot(p) * inv;
-    if !(-1e-12..=1.0 + 1e-12).contains(&a) {
-        return None;
+
+    /// The ray parameter where the ray from the origin along `dir` meets the triangle (edges
+    /// `e1`, `e2`; edges inclusive), if it does.
+    #[inline(always)]
+    fn hit(&self, dir: DVec3, e1: DVec3, e2: DVec3) -> Option<f64> {
+        let p = dir.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-300 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let a = self.s.dot(p) * inv;
+        if !(-1e-12..=1.0 + 1e-12).contains(&a) {
+            return None;
+        }
+        let b = dir.dot(self.q) * inv;
+        if b < -1e-12 || a + b > 1.0 + 1e-12 {
+            return None;
+        }
+        Some(self.t_det * inv)
     }
-    let q = s.cross(e1);
-    let b = dir.dot(q) * inv;
-    if b < -1e-12 || a + b > 1.0 + 1e-12 {
-        return None;
-    }
-    Some(e2.dot(q) * inv)
 }
 
 #[cfg(test)]
