@@ -557,19 +557,18 @@ impl<'s> ElementSource<'s> {
             return None;
         }
         let visibility = self.shot.visibility;
-        let seen = match (rays, known) {
-            (Rays::AllPass, _) => ALL_VISIBLE,
-            (_, Some(seen)) => seen,
-            (Rays::Trace, None) => trace_packet(visibility, x, &front.points[..k], ignore),
-            (Rays::Centre, None) => {
+        let seen = verdicts(
+            (rays, known),
+            || trace_packet(visibility, x, &front.points[..k], ignore),
+            || {
                 let w: f64 = front.weights[..k].iter().sum();
                 let centroid = (0..k)
                     .map(|i| front.points[i] * front.weights[i])
                     .sum::<DVec3>()
                     / w;
                 trace_packet(visibility, x, &[centroid], ignore)
-            }
-        };
+            },
+        );
         let unoccluded = f * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
@@ -624,12 +623,11 @@ impl Source for ElementSource<'_> {
                 return Some(out);
             }
         }
-        let seen = match (rays, seen) {
-            (Rays::AllPass, _) => ALL_VISIBLE,
-            (_, Some(seen)) => seen,
-            (Rays::Centre, None) => self.centre_verdict(x, ignore),
-            (Rays::Trace, None) => self.trace_rule(x, ignore),
-        };
+        let seen = verdicts(
+            (rays, seen),
+            || self.trace_rule(x, ignore),
+            || self.centre_verdict(x, ignore),
+        );
         Some(self.with_verdicts(x, n, f, seen))
     }
 
@@ -710,6 +708,22 @@ impl Source for ElementSource<'_> {
             // transfer.
             detail: !self.shot.direct && self.src.node.is_some_and(|n| !h.nodes[n].is_leaf()),
         }
+    }
+}
+
+/// A point's verdicts (one bit per emitting rule point) as `rays` decides them, unless an earlier
+/// shot's are `known`: every point seen ([`Rays::AllPass`], before anything known), the known
+/// ones, one ray per point (`trace`) or one ray for all of them (`centre`).
+fn verdicts(
+    (rays, known): (Rays, Option<u64>),
+    trace: impl FnOnce() -> u64,
+    centre: impl FnOnce() -> u64,
+) -> u64 {
+    match (rays, known) {
+        (Rays::AllPass, _) => ALL_VISIBLE,
+        (_, Some(seen)) => seen,
+        (Rays::Trace, None) => trace(),
+        (Rays::Centre, None) => centre(),
     }
 }
 
