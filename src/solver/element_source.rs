@@ -711,9 +711,12 @@ impl Source for ElementSource<'_> {
     }
 }
 
-/// A point's verdicts (one bit per emitting rule point) as `rays` decides them, unless an earlier
-/// shot's are `known`: every point seen ([`Rays::AllPass`], before anything known), the known
-/// ones, one ray per point (`trace`) or one ray for all of them (`centre`).
+/// A receiver point's verdicts (one bit per sample point of the rule in use: the element's
+/// emitting points, or the front rule's) as `rays` decides them: every point seen on
+/// [`Rays::AllPass`], even where an earlier shot's verdicts are `known`; else the known ones;
+/// else one ray per point (`trace`) or one ray for all of them (`centre`).
+/// `transfer::tests::rays_taken_as_passing_trace_none_and_see_the_source_whole` pins the first,
+/// `transfer::tests::centre_rays_trace_one_ray_per_point_and_give_all_or_nothing` the last.
 fn verdicts(
     (rays, known): (Rays, Option<u64>),
     trace: impl FnOnce() -> u64,

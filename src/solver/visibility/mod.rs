@@ -11,7 +11,10 @@
 //! best preset; the occluders are stored in the BVH's leaf order, as first vertex, edges and face
 //! (`Tri`), so a leaf's primitive index is the record's index; the traversal is obvhs'
 //! `traverse!` with our own node test (`node_test.rs`: SSE2, same arithmetic as obvhs', but boxes
-//! culled behind half the box padding instead of 1e-4).
+//! culled behind half the box padding instead of 1e-4). A packet's segments share their start:
+//! a leaf's triangle computes what Möller-Trumbore reads of the start and the triangle once for
+//! all of them (`TriangleFrom`); the single segment's test is the same body, so a packet and
+//! its single segments agree bit for bit (`packet_verdicts_are_the_single_rays`).
 //!
 //! Two code paths, one source: the segment tests (`visible_uncounted`, `visible_from`) are
 //! compiled for the baseline and, on x86_64, for x86-64-v3 (AVX2, FMA, BMI, LZCNT, POPCNT: the
@@ -392,7 +395,7 @@ impl Visibility {
                     // What the segment test reads of the packet's start, once per triangle.
                     let from = TriangleFrom::new(p, tri.v0, tri.e1, tri.e2);
                     for i in bits(candidates) {
-                        if seg(i).reaches(from.hit(seg(i).dir, tri.e1, tri.e2)) {
+                        if seg(i).reaches(from.hit(seg(i).dir)) {
                             open &= !(1 << i);
                             LAST_BLOCKER.with(|c| c.set(prim));
                         }
@@ -575,15 +578,18 @@ pub(crate) fn intersect(origin: DVec3, dir: DVec3, v: &[DVec3; 3]) -> Option<f64
 /// (the same operations in the same order: the same verdicts, bit for bit).
 #[inline(always)]
 fn intersect_edges(origin: DVec3, dir: DVec3, v0: DVec3, e1: DVec3, e2: DVec3) -> Option<f64> {
-    TriangleFrom::new(origin, v0, e1, e2).hit(dir, e1, e2)
+    TriangleFrom::new(origin, v0, e1, e2).hit(dir)
 }
 
-/// What Möller-Trumbore reads of a ray's origin and a triangle alone (`s = origin - v0`,
-/// `q = s x e1`, `e2 . q`): a packet's rays share their origin, so a triangle computes it once
-/// for all of them. [`intersect_edges`] is this and [`TriangleFrom::hit`]: one body, the same
-/// operations in the same order for a packet and a single ray
-/// (`packet_verdicts_are_the_single_rays`).
+/// A triangle as Möller-Trumbore reads it from one ray origin: its edges and the terms that
+/// depend on the origin and the triangle alone (`s = origin - v0`, `q = s x e1`, `e2 . q`). A
+/// packet's rays share their origin, so a leaf's triangle computes them once for all its
+/// segments. [`intersect_edges`] is [`TriangleFrom::new`] followed by [`TriangleFrom::hit`]:
+/// one body, the same operations in the same order for a packet and a single ray, so the same
+/// verdicts bit for bit (`packet_verdicts_are_the_single_rays`).
 struct TriangleFrom {
+    e1: DVec3,
+    e2: DVec3,
     s: DVec3,
     q: DVec3,
     /// `e2 . q`: the ray parameter of the hit times the determinant.
@@ -596,6 +602,8 @@ impl TriangleFrom {
         let s = origin - v0;
         let q = s.cross(e1);
         TriangleFrom {
+            e1,
+            e2,
             s,
             q,
             t_det: e2.dot(q),
@@ -603,9 +611,10 @@ impl TriangleFrom {
     }
 
     /// The ray parameter where the ray from the origin along `dir` meets the triangle (edges
-    /// `e1`, `e2`; edges inclusive), if it does.
+    /// inclusive), if it does.
     #[inline(always)]
-    fn hit(&self, dir: DVec3, e1: DVec3, e2: DVec3) -> Option<f64> {
+    fn hit(&self, dir: DVec3) -> Option<f64> {
+        let (e1, e2) = (self.e1, self.e2);
         let p = dir.cross(e2);
         let det = e1.dot(p);
         if det.abs() < 1e-300 {
