@@ -492,6 +492,8 @@ pub(super) fn unshot_power(h: &Hierarchy, r: &ElementRoot) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::solver::element::tests::parallelogram_root;
+    use glam::DVec3;
 
     /// A receiver not visited weighs nothing; one that would receive nothing, 1; one that would
     /// receive the threshold, 2; above, its weight grows slower than what it would receive.
@@ -508,8 +510,6 @@ mod tests {
         assert!(w2 > w1 && w2 - 1.0 < 100.0 * (w1 - 1.0), "{w1} {w2}");
         assert!(((w2 - 1.0) / (w1 - 1.0) - 100f64.powf(RECEIVER_COST_EXPONENT)).abs() < 1e-9);
     }
-    use crate::solver::element::tests::parallelogram_root;
-    use glam::DVec3;
 
     /// A pass: the root with the most unshot power first, then by decreasing power (ties by
     /// index) the roots with at least `PASS_SHARE` of it that face none of those taken, at most

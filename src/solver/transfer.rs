@@ -86,9 +86,10 @@ impl Received {
 /// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
 /// rule points' irradiance onto the receiver's basis. A point that casts from where an earlier
 /// one does takes that point's answer, asking the source nothing: on an extended root's node
-/// the first with the same stand-in ([`NodeCover::alike`](super::cover::NodeCover::alike)), on a native
-/// root the first at the same place (`alike`, [`Rules::alike`](super::rules::Rules::alike)). `rays` says how the shadow rays are decided,
-/// unless an earlier shot's verdicts for this link are `known`.
+/// the first with the same stand-in
+/// ([`NodeCover::alike`](super::cover::NodeCover::alike)), on a native root the first at the
+/// same place (`alike`, [`Rules::alike`](super::rules::Rules::alike)). `rays` says how the
+/// shadow rays are decided, unless an earlier shot's verdicts for this link are `known`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
