@@ -195,7 +195,7 @@ impl ShotContext<'_> {
         let rroot = &self.roots[rcv_index];
         let weight = oracle_weight(self.quantity, node_reflectance::rho_of(rcv, rroot, b));
         let source = shot.source(part, weight)?;
-        let receiver = ReceiverNode::new(rroot, rcv, b);
+        let receiver = ReceiverNode::new(rroot, rcv, b, self.rules);
         let rays = match (link.rays, &receiver.cover) {
             // Off the face, a node's points cast from stand-ins on the face's border, which
             // the rays of the node the link was re-sent from need not have sampled.
@@ -249,7 +249,7 @@ impl ShotContext<'_> {
             let Some(source) = shot.source(part, weight) else {
                 return;
             };
-            let receiver = ReceiverNode::new(rroot, rcv, b);
+            let receiver = ReceiverNode::new(rroot, rcv, b, self.rules);
             oracle::evaluate(self, &source, &receiver, &received, weight, rays)
         };
         if let Some(key) = key {
@@ -315,7 +315,7 @@ impl ShotContext<'_> {
             self.rules.of(shape),
             self.psi.of(shape),
             self.bases.of(shape).len(),
-            (check_points, self.rules.alike(shape)),
+            check_points,
             rays,
             known,
         );

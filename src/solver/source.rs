@@ -12,7 +12,7 @@
 //! needs, in a fixed order (the ray count is part of the solve's statistics).
 
 use super::basis::ChildMap;
-use super::cover::{self, NodeCover};
+use super::cover::{self, NodeCover, MAX_POINTS};
 use super::element::visibility_point;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
@@ -21,7 +21,7 @@ use super::mean_rgb_sum;
 use super::near_verdicts::ALL_VISIBLE;
 use super::node_reflectance;
 use super::refine::Shot;
-use super::rules::corner_probe_points;
+use super::rules::{corner_probe_points, Rules};
 use super::shot_record::SourcePath;
 use super::visibility::Visibility;
 use crate::domain::{ElementRoot, Shape};
@@ -152,19 +152,26 @@ pub(super) struct ReceiverNode<'a> {
     pub patch: Patch,
     /// Extended roots: how the node covers the face.
     pub cover: Option<&'a NodeCover>,
+    /// For each point (rule points, then check points), the first point asked before whose
+    /// answer it takes, itself if none: an extended root's node's own stand-ins
+    /// ([`NodeCover::alike`]), a native root's the shape's ([`Rules::alike`](super::rules::Rules::alike)).
+    pub alike: &'a [u8; MAX_POINTS],
     /// A leaf whose reflectance varies: its deviation from its mean (see `reflectance_error`).
     pub reflectance_deviation: Option<Rgb>,
 }
 
 impl<'a> ReceiverNode<'a> {
-    pub fn new(root: &'a ElementRoot, h: &'a Hierarchy, index: usize) -> Self {
+    /// Node `index` of `h`, a hierarchy of `root`; `rules` give a native root's points.
+    pub fn new(root: &'a ElementRoot, h: &'a Hierarchy, index: usize, rules: &'a Rules) -> Self {
         let node = h.nodes[index];
+        let cover = cover::of_node(h, root, index);
         ReceiverNode {
             root,
             map: node.map,
             depth: node.depth,
             patch: Patch::new(root, &node.map),
-            cover: cover::of_node(h, root, index),
+            cover,
+            alike: cover.map_or(rules.alike(root.shape), |c| &c.alike),
             reflectance_deviation: node
                 .is_leaf()
                 .then(|| node_reflectance::deviation_of(h, index)),

@@ -85,11 +85,10 @@ impl Received {
 /// Asks `source` at `receiver`'s `rule` points (their basis values: `psi`, `nr` functions), then
 /// at its first `check_points` check points ([`ReceiverNode::check_point`]), and projects the
 /// rule points' irradiance onto the receiver's basis. A point that casts from where an earlier
-/// one does takes that point's answer, asking the source nothing: on an extended root's node
-/// the first with the same stand-in
-/// ([`NodeCover::alike`](super::cover::NodeCover::alike)), on a native root the first at the
-/// same place (`alike`, [`Rules::alike`](super::rules::Rules::alike)). `rays` says how the
-/// shadow rays are decided, unless an earlier shot's verdicts for this link are `known`.
+/// one does takes that point's answer, asking the source nothing ([`ReceiverNode::alike`]: on
+/// an extended root's node the first with the same stand-in, on a native root the first at the
+/// same place). `rays` says how the shadow rays are decided, unless an earlier shot's verdicts
+/// for this link are `known`.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
@@ -97,7 +96,7 @@ pub(super) fn receive(
     rule: &[QuadPoint],
     psi: &[[f64; MAX_FUNCTIONS]],
     nr: usize,
-    (check_points, alike): (usize, &[u8; MAX_POINTS]),
+    check_points: usize,
     rays: Rays,
     known: Option<&KnownVerdicts>,
 ) -> Received {
@@ -121,11 +120,9 @@ pub(super) fn receive(
         form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
     };
-    // The point asked before whose answer a point takes: on an extended root's node, the first
-    // with the same stand-in; elsewhere the first at the same place (`alike`).
-    let alike = receiver.cover.map_or(alike, |c| &c.alike);
+    // The point asked before whose answer a point takes.
     let asked_before = |k: usize| -> Option<usize> {
-        let i = usize::from(alike[k]);
+        let i = usize::from(receiver.alike[k]);
         debug_assert!(i <= k);
         (i != k).then_some(i)
     };
@@ -215,7 +212,7 @@ mod tests {
             rules.of(shape),
             psi.of(shape),
             bases.of(shape).len(),
-            (corner_probe_points(shape).len(), rules.alike(shape)),
+            corner_probe_points(shape).len(),
             rays,
             None,
         );
@@ -227,7 +224,9 @@ mod tests {
     fn received(blocked: bool, rays: Rays) -> (Received, u64) {
         square_under_square(blocked, |source, root, visibility| {
             let h = Hierarchy::new(Bases::new(2).of(root.shape).len());
-            receive_counting(source, &ReceiverNode::new(root, &h, 0), visibility, rays)
+            let rules = Rules::new(2);
+            let node = ReceiverNode::new(root, &h, 0, &rules);
+            receive_counting(source, &node, visibility, rays)
         })
     }
 
@@ -319,6 +318,7 @@ mod tests {
                     depth: 3,
                     patch: Patch::new(&root, &map),
                     cover: Some(cover),
+                    alike: &cover.alike,
                     reflectance_deviation: None,
                 };
                 receive_counting(source, &node, visibility, Rays::Trace)
