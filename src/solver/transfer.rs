@@ -126,8 +126,8 @@ pub(super) fn receive(
         debug_assert!(i <= k);
         (i != k).then_some(i)
     };
-    // Rule points the source had no answer for, and those where the touching fallback stood in.
-    let (mut unanswered, mut touching) = (0u32, 0u32);
+    // Rule points where the touching fallback stood in.
+    let mut touching = 0u32;
     let covered = |k: usize| receiver.cover.as_ref().map_or(1.0, |c| c.alpha[k]);
     for k in 0..out.points {
         if let Some(i) = asked_before(k) {
@@ -135,8 +135,9 @@ pub(super) fn receive(
             out.seen[k] = out.seen[i];
             out.form_factors[k] = out.form_factors[i];
             // A rule point copies a rule point (they come first): what it adds is its own
-            // weight's share; the largest values and any-flags already hold the copied one's.
-            if let Some(q) = rule.get(k).filter(|_| unanswered & (1 << i) == 0) {
+            // weight's share (nothing where the copied one had no answer: its values are
+            // zero); the largest values and any-flags already hold the copied one's.
+            if let Some(q) = rule.get(k) {
                 let touched = touching & (1 << i) != 0;
                 out.add_rule_point(
                     k,
@@ -157,7 +158,6 @@ pub(super) fn receive(
         else {
             // No ray sampled what this point's neighbours in a child may see.
             out.all_pass = false;
-            unanswered |= 1 << k;
             continue;
         };
         out.all_pass &= p.any_visible && !p.any_blocked;
