@@ -154,14 +154,15 @@ pub(super) struct ReceiverNode<'a> {
     pub cover: Option<&'a NodeCover>,
     /// For each point (rule points, then check points), the first point asked before whose
     /// answer it takes, itself if none: an extended root's node's own stand-ins
-    /// ([`NodeCover::alike`]), a native root's the shape's ([`Rules::alike`](super::rules::Rules::alike)).
+    /// ([`NodeCover::alike`]), a native root's the shape's ([`Rules::alike`]).
     pub alike: &'a [u8; MAX_POINTS],
     /// A leaf whose reflectance varies: its deviation from its mean (see `reflectance_error`).
     pub reflectance_deviation: Option<Rgb>,
 }
 
 impl<'a> ReceiverNode<'a> {
-    /// Node `index` of `h`, a hierarchy of `root`; `rules` give a native root's points.
+    /// Node `index` of `h`, a hierarchy of `root`; `rules` give a native root's `alike` map
+    /// ([`Rules::alike`]).
     pub fn new(root: &'a ElementRoot, h: &'a Hierarchy, index: usize, rules: &'a Rules) -> Self {
         let node = h.nodes[index];
         let cover = cover::of_node(h, root, index);

@@ -16,7 +16,7 @@ use crate::scene::Rgb;
 use std::cell::Cell;
 
 // Every evaluation zeroes its arrays of `MAX_POINTS` (a receiver's rule and check points); the
-// points answered and touching are bits of a `u32`.
+// rule points where the touching fallback stood in are bits of a `u32`.
 use super::cover::MAX_POINTS;
 const _: () = assert!(MAX_POINTS <= u32::BITS as usize);
 
