@@ -66,6 +66,40 @@ struct Tri {
     face: u32,
 }
 
+impl Tri {
+    /// True for a triangle of a face the link joins: it never occludes the link.
+    #[inline(always)]
+    fn ignored(&self, ignore: [u32; 2]) -> bool {
+        self.face == ignore[0] || self.face == ignore[1]
+    }
+
+    /// The segments among `candidates` (bits; `seg` gives each, all starting at `p`) that this
+    /// triangle blocks: what the test reads of the shared start computed once for all of them
+    /// (`TriangleFrom`), each verdict [`Segment::blocked_by`]'s bit for bit.
+    #[inline(always)]
+    fn blocks_from<'s>(
+        &self,
+        p: DVec3,
+        ignore: [u32; 2],
+        candidates: u64,
+        seg: &impl Fn(u32) -> &'s Segment,
+    ) -> u64 {
+        if candidates == 0 || self.ignored(ignore) {
+            return 0;
+        }
+        let from = TriangleFrom::new(p, self.v0, self.e1, self.e2);
+        let mut blocked = 0;
+        for i in bits(candidates) {
+            let s = seg(i);
+            debug_assert_eq!(s.p, p, "a packet's segments share their start");
+            if s.reaches(from.hit(s.dir)) {
+                blocked |= 1 << i;
+            }
+        }
+        blocked
+    }
+}
+
 impl Boundable for Occluder {
     fn aabb(&self) -> Aabb {
         self.aabb
@@ -318,11 +352,7 @@ impl Visibility {
         // The shadow cache, for the whole packet.
         let last = LAST_BLOCKER.with(Cell::get);
         if let Some(tri) = self.tris.get(last as usize) {
-            for i in bits(open) {
-                if seg(i).blocked_by(tri, ignore) {
-                    open &= !(1 << i);
-                }
-            }
+            open &= !tri.blocks_from(p, ignore, open, &seg);
         }
         let origin = p.as_vec3a();
         let mut stack = PACKET_STACK.take();
@@ -387,18 +417,11 @@ impl Visibility {
                 }
                 let (first, count) = node.child_primitives(slot);
                 for prim in first..first + count {
-                    let tri = &self.tris[prim as usize];
-                    let candidates = rays & open;
-                    if candidates == 0 || tri.face == ignore[0] || tri.face == ignore[1] {
-                        continue;
-                    }
-                    // What the segment test reads of the packet's start, once per triangle.
-                    let from = TriangleFrom::new(p, tri.v0, tri.e1, tri.e2);
-                    for i in bits(candidates) {
-                        if seg(i).reaches(from.hit(seg(i).dir)) {
-                            open &= !(1 << i);
-                            LAST_BLOCKER.with(|c| c.set(prim));
-                        }
+                    let blocked =
+                        self.tris[prim as usize].blocks_from(p, ignore, rays & open, &seg);
+                    if blocked != 0 {
+                        open &= !blocked;
+                        LAST_BLOCKER.with(|c| c.set(prim));
                     }
                 }
             }
@@ -456,8 +479,7 @@ impl Segment {
     /// True when `tri` counts as a blocker: not of an ignored face, hit strictly within range.
     #[inline(always)]
     fn blocked_by(&self, tri: &Tri, ignore: [u32; 2]) -> bool {
-        tri.face != ignore[0]
-            && tri.face != ignore[1]
+        !tri.ignored(ignore)
             && self.reaches(intersect_edges(self.p, self.dir, tri.v0, tri.e1, tri.e2))
     }
 
