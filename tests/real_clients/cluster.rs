@@ -393,19 +393,52 @@ async fn wait_state(
     states: &[&str],
     limit: Duration,
 ) -> Value {
+    wait_until(client, base, id, limit, |j| {
+        states.iter().any(|s| j["state"] == *s)
+    })
+    .await
+}
+
+/// Polls job `id` on `base` every 100 ms until `done` holds of it; fails after `limit`.
+async fn wait_until(
+    client: &Client,
+    base: &str,
+    id: &str,
+    limit: Duration,
+    done: impl Fn(&Value) -> bool,
+) -> Value {
     let start = Instant::now();
     loop {
         let j = job(client, base, id).await;
-        if states.iter().any(|s| j["state"] == *s) {
+        if done(&j) {
             return j;
         }
         assert!(
             start.elapsed() < limit,
-            "job {id} still {} after {limit:?}: {j}",
-            j["state"]
+            "job {id} not there after {limit:?}: {j}"
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
+}
+
+/// A job that never converges, submitted to replica 0 with `max_seconds` and running.
+async fn running_job(client: &Client, cluster: &Cluster, max_seconds: u32) -> String {
+    let id = submit_ok(
+        client,
+        cluster.base(0),
+        &format!("order=1&max_seconds={max_seconds}"),
+        never_converging_scene(),
+    )
+    .await;
+    wait_state(
+        client,
+        cluster.base(0),
+        &id,
+        &["running"],
+        Duration::from_secs(60),
+    )
+    .await;
+    id
 }
 
 /// The replica (index) whose process holds job `id`'s lease, from the row.
@@ -605,21 +638,7 @@ async fn a_cancel_sent_to_one_replica_stops_the_job_running_on_another_within_tw
         return;
     };
     let http = client();
-    let id = submit_ok(
-        &http,
-        cluster.base(0),
-        "order=1&max_seconds=120",
-        never_converging_scene(),
-    )
-    .await;
-    wait_state(
-        &http,
-        cluster.base(0),
-        &id,
-        &["running"],
-        Duration::from_secs(60),
-    )
-    .await;
+    let id = running_job(&http, &cluster, 120).await;
     let db = cluster.pg.client().await;
     let runner = runner_of(&cluster, &db, &id).await;
     let other = cluster.base(runner + 1).to_string();
@@ -684,21 +703,7 @@ async fn a_killed_replica_s_job_is_finished_by_another_after_its_lease_expires()
         return;
     };
     let http = client();
-    let long = submit_ok(
-        &http,
-        cluster.base(0),
-        "order=1&max_seconds=6",
-        never_converging_scene(),
-    )
-    .await;
-    wait_state(
-        &http,
-        cluster.base(0),
-        &long,
-        &["running"],
-        Duration::from_secs(60),
-    )
-    .await;
+    let long = running_job(&http, &cluster, 6).await;
     let mut small = Vec::new();
     for n in 0..6 {
         small.push(
@@ -855,37 +860,16 @@ async fn a_replica_that_lost_its_lease_cannot_overwrite_the_new_attempt() {
         return;
     };
     let http = client();
-    let id = submit_ok(
-        &http,
-        cluster.base(0),
-        "order=1&max_seconds=5",
-        never_converging_scene(),
-    )
-    .await;
-    wait_state(
-        &http,
-        cluster.base(0),
-        &id,
-        &["running"],
-        Duration::from_secs(60),
-    )
-    .await;
+    let id = running_job(&http, &cluster, 5).await;
     let db = cluster.pg.client().await;
     let first = runner_of(&cluster, &db, &id).await;
     let other = cluster.base(first + 1).to_string();
     signal(&cluster.replicas[first], libc::SIGSTOP);
-    let start = Instant::now();
-    loop {
-        let j = job(&http, &other, &id).await;
-        if j["attempts"] == 2 && j["state"] == "running" {
-            break;
-        }
-        assert!(
-            start.elapsed() < Duration::from_secs(30),
-            "never claimed again: {j}"
-        );
-        tokio::time::sleep(Duration::from_millis(100)).await;
-    }
+    // Claimed again by the other replica.
+    wait_until(&http, &other, &id, Duration::from_secs(30), |j| {
+        j["attempts"] == 2 && j["state"] == "running"
+    })
+    .await;
     assert_eq!(runner_of(&cluster, &db, &id).await, (first + 1) % 2);
     // The paused replica wakes up while the new attempt solves.
     signal(&cluster.replicas[first], libc::SIGCONT);
@@ -965,18 +949,11 @@ async fn a_job_is_failed_after_max_attempts_claims_that_did_not_finish() {
     )
     .await;
     for attempt in 1..=2 {
-        let start = Instant::now();
-        loop {
-            let j = job(&http, &cluster.replicas.last().unwrap().base, &id).await;
-            if j["state"] == "running" && j["attempts"] == attempt {
-                break;
-            }
-            assert!(
-                start.elapsed() < Duration::from_secs(60),
-                "attempt {attempt}: {j}"
-            );
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
+        let base = cluster.replicas.last().unwrap().base.clone();
+        wait_until(&http, &base, &id, Duration::from_secs(60), |j| {
+            j["state"] == "running" && j["attempts"] == attempt
+        })
+        .await;
         let last = cluster.replicas.len() - 1;
         cluster.replicas[last].child.kill().unwrap();
         let _ = cluster.replicas[last].child.wait();
