@@ -54,13 +54,13 @@ fn measure(set_name: &str) -> DirectError {
         "{set_name}: the integral reads emission factors, not textures"
     );
     assert!(scene.lights.is_empty(), "{set_name}: emitting faces only");
-    // Every emitting face shoots once, and nothing else: the emitters are shot first.
-    let prepared_faces = wavrad::faces::merge_planar_faces(&scene);
-    let emitters = prepared_faces
+    // Every emitting side shoots once, and nothing else: the emitters are shot first.
+    let emitters: usize = wavrad::faces::merge_planar_faces(&scene)
         .faces
         .iter()
         .filter(|f| emitting.contains(&(f.material as usize)))
-        .count();
+        .map(|f| if f.double_sided { 2 } else { 1 })
+        .sum();
     let params = SolverParams {
         quantity: Quantity::Irradiance,
         max_iterations: emitters as u64,
