@@ -393,17 +393,20 @@ async fn wait_state(
     states: &[&str],
     limit: Duration,
 ) -> Value {
-    wait_until(client, base, id, limit, |j| {
+    let what = format!("a state in {states:?}");
+    wait_until(client, base, id, &what, limit, |j| {
         states.iter().any(|s| j["state"] == *s)
     })
     .await
 }
 
-/// Polls job `id` on `base` every 100 ms until `done` holds of it; fails after `limit`.
+/// Polls job `id` on `base` every 100 ms until `done` holds of it; fails after `limit`, saying
+/// `what` was awaited.
 async fn wait_until(
     client: &Client,
     base: &str,
     id: &str,
+    what: &str,
     limit: Duration,
     done: impl Fn(&Value) -> bool,
 ) -> Value {
@@ -415,7 +418,7 @@ async fn wait_until(
         }
         assert!(
             start.elapsed() < limit,
-            "job {id} not there after {limit:?}: {j}"
+            "job {id}: no {what} after {limit:?}: {j}"
         );
         tokio::time::sleep(Duration::from_millis(100)).await;
     }
@@ -866,7 +869,8 @@ async fn a_replica_that_lost_its_lease_cannot_overwrite_the_new_attempt() {
     let other = cluster.base(first + 1).to_string();
     signal(&cluster.replicas[first], libc::SIGSTOP);
     // Claimed again by the other replica.
-    wait_until(&http, &other, &id, Duration::from_secs(30), |j| {
+    let what = "second attempt running";
+    wait_until(&http, &other, &id, what, Duration::from_secs(30), |j| {
         j["attempts"] == 2 && j["state"] == "running"
     })
     .await;
@@ -950,7 +954,8 @@ async fn a_job_is_failed_after_max_attempts_claims_that_did_not_finish() {
     .await;
     for attempt in 1..=2 {
         let base = cluster.replicas.last().unwrap().base.clone();
-        wait_until(&http, &base, &id, Duration::from_secs(60), |j| {
+        let what = format!("attempt {attempt} running");
+        wait_until(&http, &base, &id, &what, Duration::from_secs(60), |j| {
             j["state"] == "running" && j["attempts"] == attempt
         })
         .await;
