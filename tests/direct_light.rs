@@ -11,7 +11,7 @@
 //!
 //! Print each set's figure and its worst probes:
 //! `cargo test --release --test direct_light -- --include-ignored --nocapture` (Red Eclipse is
-//! the ignored one). The cube of `tests/data/reference/` is lit by a point light: not here.
+//! the ignored one).
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -27,12 +27,15 @@ use wavrad::solver::SolverParams;
 /// Bounds on each set's direct-light nrms at default settings, above what the solver reaches
 /// with room for a refinement pattern's change (docs/accuracy.md, "Direct light against a
 /// brute-force integral": what each reaches, and where its worst probes lie).
+const CUBE_BOUND: f64 = 0.005;
 const CORNELL_BOUND: f64 = 0.005;
 const KENNEY_BOUND: f64 = 0.025;
 const RED_ECLIPSE_BOUND: f64 = 0.04;
 
-/// Samples of the integral over each emitting triangle.
+/// Samples of the integral over each emitting face.
 const SAMPLES: usize = 1 << 18;
+/// The fewest samples of one emitting triangle.
+const MIN_TRIANGLE_SAMPLES: usize = 64;
 
 /// One set's direct light: the nrms of the solve's direct radiance against the integral over
 /// its probes, and its worst probes.
@@ -123,9 +126,9 @@ fn measure(set_name: &str) -> DirectError {
 }
 
 /// The radiance the emitting faces give the probe directly: the reflectance of the probe's face
-/// times the sum over [`SAMPLES`] points of each emitting triangle (`r2_point`) of `L_e cos cos / (pi r^2) dA`,
-/// each sample's shadow ray ignoring the emitter's face and the probe's, as the solver's links
-/// do.
+/// times `L_e cos cos / (pi r^2) dA` summed over [`SAMPLES`] points of each emitting face, shared
+/// among its triangles by area (`r2_point`, at least [`MIN_TRIANGLE_SAMPLES`] a triangle), each
+/// sample's shadow ray ignoring the emitter's face and the probe's, as the solver's links do.
 fn direct_radiance(scene: &Scene, prepared: &Prepared, probe: &ProbePoint, face: u32) -> Rgb {
     let p = DVec3::from(probe.p);
     let n = DVec3::from(probe.n).normalize();
@@ -142,13 +145,21 @@ fn direct_radiance(scene: &Scene, prepared: &Prepared, probe: &ProbePoint, face:
         if material.emission.iter().all(|&c| c <= 0.0) {
             continue;
         }
+        let face_area: f64 = f
+            .triangulation
+            .iter()
+            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+            .sum();
         for tri in &f.triangulation {
             let (a, e1, e2) = (tri[0], tri[1] - tri[0], tri[2] - tri[0]);
+            let area = 0.5 * e1.cross(e2).length();
+            let samples =
+                ((SAMPLES as f64 * area / face_area).ceil() as usize).max(MIN_TRIANGLE_SAMPLES);
             // Each sample's area: the fold below maps the unit square two to one onto the
             // triangle, so equal weights sum to its area.
-            let weight = 0.5 * e1.cross(e2).length() / SAMPLES as f64;
+            let weight = area / samples as f64;
             let mut geometry = 0.0;
-            for k in 0..SAMPLES {
+            for k in 0..samples {
                 let (mut s, mut t) = r2_point(k);
                 if s + t > 1.0 {
                     (s, t) = (1.0 - s, 1.0 - t);
@@ -184,6 +195,11 @@ fn assert_within(set_name: &str, bound: f64) {
         e.nrms,
         e.worst
     );
+}
+
+#[test]
+fn the_cube_direct_light_matches_the_integral() {
+    assert_within("cube_onelight", CUBE_BOUND);
 }
 
 #[test]

@@ -393,7 +393,7 @@ async fn wait_state(
     states: &[&str],
     limit: Duration,
 ) -> Value {
-    let what = format!("a state in {states:?}");
+    let what = format!("state in {states:?}");
     wait_until(client, base, id, &what, limit, |j| {
         states.iter().any(|s| j["state"] == *s)
     })
