@@ -58,6 +58,7 @@ fn measure(set_name: &str) -> DirectError {
         "{set_name}: the integral reads reflectance and emission factors, not textures"
     );
     assert!(scene.lights.is_empty(), "{set_name}: emitting faces only");
+    // Every emitting root shoots once (the roots `bake` builds, counted on a first `prepare`).
     let emitting_roots = prepare(&scene, DomainMode::Extended)
         .roots
         .iter()
@@ -89,19 +90,16 @@ fn measure(set_name: &str) -> DirectError {
             (solve, direct_radiance(&scene, &prepared, probe, face))
         })
         .collect();
+    // The references' metric, with the integral standing in for the path tracer.
+    let mut integral_set = set.clone();
+    for (point, (_, integral)) in integral_set.points.iter_mut().zip(&radiances) {
+        point.l = *integral;
+    }
+    let nrms = integral_set
+        .error(&solved)
+        .expect("a value at every probe")
+        .nrms;
     let count = radiances.len() as f64;
-    let nrms = (0..3)
-        .map(|c| {
-            let mean = radiances.iter().map(|r| r.1[c]).sum::<f64>() / count;
-            let mean_square = radiances
-                .iter()
-                .map(|(solve, integral)| (solve[c] - integral[c]).powi(2))
-                .sum::<f64>()
-                / count;
-            mean_square.sqrt() / mean
-        })
-        .sum::<f64>()
-        / 3.0;
     let grey = |rgb: &Rgb| rgb.iter().sum::<f64>() / 3.0;
     let mean = radiances.iter().map(|r| grey(&r.1)).sum::<f64>() / count;
     let mut worst: Vec<(usize, f64, f64)> = radiances
@@ -145,16 +143,11 @@ fn direct_radiance(scene: &Scene, prepared: &Prepared, probe: &ProbePoint, face:
         if material.emission.iter().all(|&c| c <= 0.0) {
             continue;
         }
-        let face_area: f64 = f
-            .triangulation
-            .iter()
-            .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
-            .sum();
         for tri in &f.triangulation {
             let (a, e1, e2) = (tri[0], tri[1] - tri[0], tri[2] - tri[0]);
             let area = 0.5 * e1.cross(e2).length();
             let samples =
-                ((SAMPLES as f64 * area / face_area).ceil() as usize).max(MIN_TRIANGLE_SAMPLES);
+                ((SAMPLES as f64 * area / f.area_m2).ceil() as usize).max(MIN_TRIANGLE_SAMPLES);
             // Each sample's area: the fold below maps the unit square two to one onto the
             // triangle, so equal weights sum to its area.
             let weight = area / samples as f64;
