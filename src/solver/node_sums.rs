@@ -1,15 +1,18 @@
 //! The node-sum check after a shot: each receiver node is judged on the sum of the links it
-//! gathered, and gives back to its children the links that carry the error.
+//! gathered, and gives back to its children the links that carry the error: each to the
+//! children where its points err, the others taking its coefficients pushed down.
 //!
 //! Invariants: links only ever go to a node's descendants (larger indices), so nodes taken in index
 //! order see complete records, and the result is deterministic; a link given back is sent again
-//! as the very part that sent it (rebuilt from its path) and taken back by exactly what it added.
+//! as the very part that sent it (rebuilt from its path) and taken back by exactly what it added;
+//! a child it is not sent to gathers the link's exact restriction (`Basis::push`), so what the
+//! node held there is unchanged.
 
 use super::basis::MAX_FUNCTIONS;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::oracle::{max_deviation, oracle_weight};
-use super::refine::{take_back, Link, Shot, ShotContext};
+use super::refine::{gather, take_back, Link, Shot, ShotContext};
 use super::shot_record::{NodeSum, Parts, ShotRecord};
 use super::{DETAIL_REL, MAX_DEPTH};
 use crate::domain::ElementRoot;
@@ -28,6 +31,21 @@ impl ShotContext<'_> {
         let weight = oracle_weight(self.quantity, rroot.rho);
         let psi = self.psi.of(rroot.shape);
         move |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| max_deviation(psi, e, dh, nr, weight)
+    }
+
+    /// [`Self::node_sum_deviation`] per child of the node: the largest over the points inside
+    /// each child (a point on a boundary counts for every child it touches).
+    pub(super) fn node_sum_child_deviation<'s>(
+        &'s self,
+        rroot: &ElementRoot,
+    ) -> impl Fn(&[Rgb], &[Rgb; MAX_FUNCTIONS]) -> [f64; 4] + 's {
+        let nr = self.bases.of(rroot.shape).len();
+        let weight = oracle_weight(self.quantity, rroot.rho);
+        let psi = self.psi.of(rroot.shape);
+        let kids = self.psi.children_of(rroot.shape);
+        move |e: &[Rgb], dh: &[Rgb; MAX_FUNCTIONS]| {
+            super::oracle::child_deviation(psi, kids, e, dh, nr, weight)
+        }
     }
 
     /// After a shot's links to one receiver are gathered, judges each node on the sum of the
@@ -124,11 +142,27 @@ impl ShotContext<'_> {
                 .iter()
                 .map(|&link| (parts.get(link.path).clone(), link))
                 .collect();
+            // A child where the link's points err within its share takes the link's
+            // coefficients pushed down (their exact restriction), as if the node had kept it.
+            let basis = self.bases.of(rroot.shape);
+            let mut child_dh = [[0.0; 3]; MAX_FUNCTIONS];
+            let mut pushed = 0;
+            for (dh, &children) in resend.coefficients().zip(&resend.children) {
+                let kept_by = (0..4).filter(|c| children & (1 << c) == 0);
+                pushed += u64::from(kept_by.clone().next().is_some());
+                for c in kept_by {
+                    basis.push(c, dh, &mut child_dh[..nr]);
+                    gather(rcv, first + c, &child_dh[..nr]);
+                }
+            }
+            self.links.add(pushed);
             let links: Vec<_> = (0..4)
                 .flat_map(|c| {
                     sources
                         .iter()
-                        .map(move |(part, link)| (part, *link, first + c))
+                        .zip(&resend.children)
+                        .filter(move |(_, &children)| children & (1 << c) != 0)
+                        .map(move |((part, link), _)| (part, *link, first + c))
                 })
                 .collect();
             self.transfer_all(shot, &links, rcv_index, rcv, record);

@@ -188,6 +188,27 @@ pub(super) fn weighted_deviation(
         .sum()
 }
 
+/// Per child of the node: the largest [`weighted_deviation`] over the points in it.
+pub(super) fn child_deviation(
+    psi: &[[f64; MAX_FUNCTIONS]],
+    kids: &[u8],
+    e: &[Rgb],
+    dh: &[Rgb; MAX_FUNCTIONS],
+    nr: usize,
+    weight: Rgb,
+) -> [f64; 4] {
+    let mut out = [0.0f64; 4];
+    for ((phi, e), m) in psi.iter().zip(e).zip(kids) {
+        let d = weighted_deviation(*e, dh, phi, nr, weight);
+        for (c, o) in out.iter_mut().enumerate() {
+            if m & (1 << c) != 0 {
+                *o = o.max(d);
+            }
+        }
+    }
+    out
+}
+
 /// The oracle's error over a set of points: the largest [`weighted_deviation`] of the values `e`
 /// from the projection `dh`, the receiver's basis taking the values `psi` at those points.
 pub(super) fn max_deviation(

@@ -342,7 +342,7 @@ impl ShotContext<'_> {
         gather(rcv, b, &received.dh[..nr]);
         if self.node_sums {
             let e = &received.e[..received.points];
-            let deviation = self.node_sum_deviation(rroot)(e, &received.dh);
+            let deviation = self.node_sum_child_deviation(rroot)(e, &received.dh);
             record.add(b, e, &received.dh, nr, deviation, path, received.all_pass);
         }
     }
@@ -404,7 +404,7 @@ pub(super) struct Link {
 }
 
 /// Adds an accepted link's coefficients to node `b`'s gathered irradiance.
-fn gather(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
+pub(super) fn gather(rcv: &mut Hierarchy, b: usize, dh: &[Rgb]) {
     add_to_gathered(rcv, b, dh, 1.0);
     rcv.touched = true;
 }

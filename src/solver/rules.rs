@@ -95,6 +95,8 @@ impl Rules {
 pub(super) struct BasisAtControlPoints {
     triangle: Vec<[f64; MAX_FUNCTIONS]>,
     parallelogram: Vec<[f64; MAX_FUNCTIONS]>,
+    triangle_children: Vec<u8>,
+    parallelogram_children: Vec<u8>,
 }
 
 impl BasisAtControlPoints {
@@ -112,9 +114,44 @@ impl BasisAtControlPoints {
                 })
                 .collect()
         };
+        let kids = |shape: Shape| -> Vec<u8> {
+            let maps = super::basis::child_maps(shape);
+            rules
+                .of(shape)
+                .iter()
+                .map(|q| q.st)
+                .chain(corner_probe_points(shape).iter().copied())
+                .map(|st| {
+                    let mut m = 0u8;
+                    for (c, map) in maps.iter().enumerate() {
+                        let l = map.local(st);
+                        let e = 1e-9;
+                        let inside = match shape {
+                            Shape::Parallelogram => {
+                                l.x >= -e && l.y >= -e && l.x <= 1.0 + e && l.y <= 1.0 + e
+                            }
+                            Shape::Triangle => l.x >= -e && l.y >= -e && l.x + l.y <= 1.0 + e,
+                        };
+                        if inside {
+                            m |= 1 << c;
+                        }
+                    }
+                    debug_assert!(m != 0);
+                    m
+                })
+                .collect()
+        };
         BasisAtControlPoints {
             triangle: at(Shape::Triangle),
             parallelogram: at(Shape::Parallelogram),
+            triangle_children: kids(Shape::Triangle),
+            parallelogram_children: kids(Shape::Parallelogram),
+        }
+    }
+    pub(super) fn children_of(&self, shape: Shape) -> &[u8] {
+        match shape {
+            Shape::Triangle => &self.triangle_children,
+            Shape::Parallelogram => &self.parallelogram_children,
         }
     }
     pub(super) fn of(&self, shape: Shape) -> &[[f64; MAX_FUNCTIONS]] {
@@ -159,6 +196,81 @@ pub(super) const CORNER_INSET: f64 = 0.02;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Each control point counts for the children whose closed region holds it, checked against
+    /// a brute-force twin (the point against the child's corners, by barycentric or box test in
+    /// the parent's coordinates): every point in at least one child, the centre in all four.
+    #[test]
+    fn control_points_know_the_children_they_lie_in() {
+        let inside = |shape: Shape, c: usize, st: DVec2| -> bool {
+            let e = 1e-9;
+            let (x, y) = (st.x, st.y);
+            match (shape, c) {
+                (Shape::Parallelogram, c) => {
+                    let (x0, y0) = ((c % 2) as f64 * 0.5, (c / 2) as f64 * 0.5);
+                    x >= x0 - e && x <= x0 + 0.5 + e && y >= y0 - e && y <= y0 + 0.5 + e
+                }
+                (Shape::Triangle, 0) => x >= -e && y >= -e && x + y <= 0.5 + e,
+                (Shape::Triangle, 1) => x >= 0.5 - e && y >= -e && x + y <= 1.0 + e,
+                (Shape::Triangle, 2) => x >= -e && y >= 0.5 - e && x + y <= 1.0 + e,
+                (Shape::Triangle, _) => x <= 0.5 + e && y <= 0.5 + e && x + y >= 0.5 - e,
+            }
+        };
+        for order in 1..=3 {
+            let rules = Rules::new(order);
+            let bases = Bases::new(order);
+            let at = BasisAtControlPoints::new(&bases, &rules);
+            for shape in [Shape::Triangle, Shape::Parallelogram] {
+                let points: Vec<DVec2> = rules
+                    .of(shape)
+                    .iter()
+                    .map(|q| q.st)
+                    .chain(corner_probe_points(shape).iter().copied())
+                    .collect();
+                let kids = at.children_of(shape);
+                assert_eq!(kids.len(), points.len());
+                for (st, &m) in points.iter().zip(kids) {
+                    assert_ne!(m, 0, "M{order} {shape:?} {st}");
+                    for c in 0..4 {
+                        assert_eq!(
+                            m & (1 << c) != 0,
+                            inside(shape, c, *st),
+                            "{shape:?} {st} {c}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Per child, the deviation is the largest over the points the child holds, so the largest
+    /// over the children is the node's own (`oracle::max_deviation`), each point counting.
+    #[test]
+    fn the_children_deviations_cover_the_nodes() {
+        use super::super::oracle::{child_deviation, max_deviation, weighted_deviation};
+        let rules = Rules::new(2);
+        let bases = Bases::new(2);
+        let at = BasisAtControlPoints::new(&bases, &rules);
+        for shape in [Shape::Triangle, Shape::Parallelogram] {
+            let psi = at.of(shape);
+            let nr = bases.of(shape).len();
+            let e: Vec<[f64; 3]> = (0..psi.len())
+                .map(|k| [k as f64 * 0.37 % 1.0, (k * k) as f64 * 0.11 % 1.0, 0.5])
+                .collect();
+            let mut dh = [[0.0; 3]; MAX_FUNCTIONS];
+            dh[0] = [0.4, 0.3, 0.5];
+            let weight = [0.5, 0.7, 0.9];
+            let per_child = child_deviation(psi, at.children_of(shape), &e, &dh, nr, weight);
+            let whole = max_deviation(psi, &e, &dh, nr, weight);
+            assert_eq!(per_child.iter().copied().fold(0.0, f64::max), whole);
+            for (k, (phi, m)) in psi.iter().zip(at.children_of(shape)).enumerate() {
+                let d = weighted_deviation(e[k], &dh, phi, nr, weight);
+                for c in (0..4).filter(|c| m & (1 << c) != 0) {
+                    assert!(per_child[c] >= d, "{shape:?} point {k} child {c}");
+                }
+            }
+        }
+    }
 
     /// A point lies where an earlier one does only at a parallelogram's centre at M2 (the
     /// middle of the 3 x 3 Gauss rule, and a check point): no triangle's, no other order's.

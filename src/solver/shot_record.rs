@@ -4,15 +4,17 @@
 //! Owns [`ShotRecord`]: per node, the sum of its links' irradiance at the node's rule points then
 //! check points and the sum of their coefficients; per link only what judging and re-sending it
 //! needs: its source as a [`SourcePath`] (the children taken from the part the shot started
-//! from, rebuilt by [`Parts`]), its own deviation, whether all its traced rays passed, and its
-//! coefficients (to take it back exactly).
+//! from, rebuilt by [`Parts`]), its own deviation over the points inside each of the node's four
+//! children, whether all its traced rays passed, and its coefficients (to take it back exactly).
+//! A link that fails its share goes again only to the children where it fails
+//! ([`NodeSum::links_to_resend`]; `a_link_goes_again_only_to_the_children_where_it_errs`).
 //! A link's record costs `LINK_ENTRY_BYTES + nr * size_of::<Rgb>()` bytes whatever its source
 //! (`a_recorded_link_costs_its_path_deviation_and_coefficients_whatever_the_part`); point values
 //! are kept per node, so they grow with elements, not with links.
 //!
 //! Invariants: a node's sums are the sums of its recorded links, point by point and coefficient by
-//! coefficient, added in the order the links came; each link's deviation is the one its values
-//! had against its coefficients; `link_bytes` is the allocated size of the per-link entries held.
+//! coefficient, added in the order the links came; each link's deviations are the ones its values
+//! had against its coefficients, per child; `link_bytes` is the allocated size of the per-link entries held.
 
 use super::basis::MAX_FUNCTIONS;
 use super::refine::{Link, Shot};
@@ -69,15 +71,16 @@ struct LinkEntry {
     source: SourcePath,
     /// Every ray of the link passed (its points' rays, or those of the link it was re-sent from).
     all_pass: bool,
-    /// The oracle's deviation of the link's point values from its coefficients.
-    deviation: f64,
+    /// The oracle's deviation of the link's point values from its coefficients, over the points
+    /// inside each of the node's four children.
+    deviation: [f32; 4],
 }
 
 /// Bytes of one link's entry beside its `nr` coefficients.
 pub(super) const LINK_ENTRY_BYTES: usize = size_of::<LinkEntry>();
 
 // A link's entry is a path, a flag and a deviation: never its source part or its point values.
-const _: () = assert!(LINK_ENTRY_BYTES <= 16);
+const _: () = assert!(LINK_ENTRY_BYTES <= 24);
 
 /// The per-link entries of a record at their largest: their bytes (as allocated) and the links
 /// held then.
@@ -173,8 +176,8 @@ impl<P> ShotRecord<P> {
     }
 
     /// Records a link gathered at node `b`: its values `e` at the node's points, its coefficients
-    /// `dh` (the first `nr` kept with the link), `deviation` of `e` from `dh`, its source, and
-    /// whether all its rays passed.
+    /// `dh` (the first `nr` kept with the link), `deviation` of `e` from `dh` over the points
+    /// inside each of the node's children, its source, and whether all its rays passed.
     #[allow(clippy::too_many_arguments)]
     pub fn add(
         &mut self,
@@ -182,7 +185,7 @@ impl<P> ShotRecord<P> {
         e: &[Rgb],
         dh: &[Rgb; MAX_FUNCTIONS],
         nr: usize,
-        deviation: f64,
+        deviation: [f64; 4],
         source: SourcePath,
         all_pass: bool,
     ) {
@@ -199,7 +202,7 @@ impl<P> ShotRecord<P> {
         sum.links.push(LinkEntry {
             source,
             all_pass,
-            deviation,
+            deviation: deviation.map(|d| d as f32),
         });
         sum.link_dh.extend_from_slice(&dh[..nr]);
         let after = sum.link_bytes();
@@ -227,6 +230,9 @@ impl<P> ShotRecord<P> {
 /// their coefficients, in the order they came.
 pub(super) struct Resend {
     pub sources: Vec<Link>,
+    /// Per link, the children (bit `c` for child `c`) whose points' deviation exceeds the
+    /// link's share: those it is sent again to. The others keep its coefficients.
+    pub children: Vec<u8>,
     /// `nr` per link.
     dh: Vec<Rgb>,
     nr: usize,
@@ -246,9 +252,11 @@ impl Resend {
 impl NodeSum {
     /// When the sum's `deviation` (the oracle's error of a set of point values against a
     /// projection) exceeds `allowed`, the links that must go to the node's children: every link
-    /// whose own deviation exceeds its share `allowed / n`. The links kept then sum to a
-    /// deviation within `allowed`, since the deviation of a sum is at most the sum of the
-    /// deviations. `None` when the sum passes.
+    /// whose own deviation exceeds its share `allowed / n` in some child, sent again to the
+    /// children where it does. What stays (the links kept, and the others' coefficients in the
+    /// children where they are within their share) sums to a deviation within `allowed` in
+    /// every child, since the deviation of a sum is at most the sum of the deviations. `None`
+    /// when the sum passes.
     pub fn links_to_resend(
         self,
         allowed: f64,
@@ -262,11 +270,15 @@ impl NodeSum {
         let share = allowed / n as f64;
         let mut resend = Resend {
             sources: Vec::new(),
+            children: Vec::new(),
             dh: Vec::new(),
             nr,
         };
         for (l, dh) in self.links.iter().zip(self.link_dh.chunks_exact(nr.max(1))) {
-            if l.deviation > share {
+            let children = (0..4)
+                .filter(|&c| f64::from(l.deviation[c]) > share)
+                .fold(0u8, |m, c| m | 1 << c);
+            if children != 0 {
                 let rays = if l.all_pass {
                     Rays::AllPass
                 } else {
@@ -277,6 +289,7 @@ impl NodeSum {
                     rays,
                 });
                 resend.dh.extend_from_slice(dh);
+                resend.children.push(children);
             }
         }
         // Empty only by rounding (the sum's deviation is at most the links' sum): nothing to do.
@@ -367,7 +380,15 @@ mod tests {
 
     fn add(r: &mut ShotRecord<()>, b: usize, values: &[f64], i: usize) {
         let (e, dh) = link(values);
-        r.add(b, &e, &dh, 1, constant_deviation(&e, &dh), path(i), false);
+        r.add(
+            b,
+            &e,
+            &dh,
+            1,
+            [constant_deviation(&e, &dh); 4],
+            path(i),
+            false,
+        );
     }
 
     fn resent(sum: NodeSum, allowed: f64) -> Option<Vec<usize>> {
@@ -398,9 +419,33 @@ mod tests {
         add(&mut r, 0, &[1.0, 1.0], 10);
         let (_, sum) = r.pop_first().expect("recorded");
         let allowed = 0.2;
-        assert!(sum.links.iter().all(|l| l.deviation <= allowed));
+        assert!(sum
+            .links
+            .iter()
+            .all(|l| l.deviation.iter().all(|&d| f64::from(d) <= allowed)));
         let sent = resent(sum, allowed).expect("the sum fails");
         assert_eq!(sent, (0..10).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_link_goes_again_only_to_the_children_where_it_errs() {
+        // Ten links whose sum fails; link 3 errs in children 1 and 2 only, the others in all.
+        let mut r = ShotRecord::<()>::default();
+        for i in 0..10 {
+            let (e, dh) = link(&[0.1, 0.0]);
+            let d = constant_deviation(&e, &dh);
+            let deviation = if i == 3 { [0.0, d, d, 0.0] } else { [d; 4] };
+            r.add(0, &e, &dh, 1, deviation, path(i), false);
+        }
+        let (_, sum) = r.pop_first().expect("recorded");
+        let resend = sum
+            .links_to_resend(0.2, constant_deviation)
+            .expect("the sum fails");
+        assert_eq!(resend.len(), 10);
+        for (l, &children) in resend.sources.iter().zip(&resend.children) {
+            let expected = if index(l.path) == 3 { 0b0110 } else { 0b1111 };
+            assert_eq!(children, expected, "link {}", index(l.path));
+        }
     }
 
     #[test]
@@ -451,7 +496,7 @@ mod tests {
             }
             // Links 1 and 3 deviate: they go back; all of link 3's rays passed.
             let deviation = if i % 2 == 1 { 1.0 } else { 0.0 };
-            r.add(2, &e, &dh, nr, deviation, path(i), i == 3);
+            r.add(2, &e, &dh, nr, [deviation; 4], path(i), i == 3);
         }
         let (_, sum) = r.pop_first().expect("recorded");
         let resend = sum.links_to_resend(0.5, |_, _| 1.0).expect("fails");
@@ -484,7 +529,7 @@ mod tests {
             let dh = [[1.0; 3]; MAX_FUNCTIONS];
             let links = 10_000;
             for i in 0..links {
-                r.add(i % 7, &e, &dh, nr, 0.0, path(i % 4096), false);
+                r.add(i % 7, &e, &dh, nr, [0.0; 4], path(i % 4096), false);
             }
             let per_link = (LINK_ENTRY_BYTES + nr * size_of::<Rgb>()) as u64;
             let within = |held: LinkBytes| {
