@@ -197,6 +197,8 @@ pub(super) fn child_deviation(
     nr: usize,
     weight: Rgb,
 ) -> [f64; 4] {
+    debug_assert_eq!(psi.len(), e.len(), "one value per point");
+    debug_assert_eq!(psi.len(), kids.len(), "one set of children per point");
     let mut out = [0.0f64; 4];
     for ((phi, e), m) in psi.iter().zip(e).zip(kids) {
         let d = weighted_deviation(*e, dh, phi, nr, weight);
