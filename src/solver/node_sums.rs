@@ -148,9 +148,9 @@ impl ShotContext<'_> {
             let mut child_dh = [[0.0; 3]; MAX_FUNCTIONS];
             let mut pushed = 0;
             for (dh, &children) in resend.coefficients().zip(&resend.children) {
-                let kept_by = (0..4).filter(|c| children & (1 << c) == 0);
-                pushed += u64::from(kept_by.clone().next().is_some());
-                for c in kept_by {
+                // Counted once however many children take it, as a kept link was.
+                pushed += u64::from(children != 0b1111);
+                for c in (0..4).filter(|c| children & (1 << c) == 0) {
                     basis.push(c, dh, &mut child_dh[..nr]);
                     gather(rcv, first + c, &child_dh[..nr]);
                 }
