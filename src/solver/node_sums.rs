@@ -12,7 +12,7 @@ use super::basis::MAX_FUNCTIONS;
 use super::element::Patch;
 use super::hierarchy::Hierarchy;
 use super::oracle::{max_deviation, oracle_weight};
-use super::refine::{gather, take_back, Link, Shot, ShotContext};
+use super::refine::{gather, take_back, Shot, ShotContext};
 use super::shot_record::{NodeSum, Parts, ShotRecord};
 use super::{DETAIL_REL, MAX_DEPTH};
 use crate::domain::ElementRoot;
@@ -59,11 +59,12 @@ impl ShotContext<'_> {
     ///
     /// A link given back is sent again as the part its path leads to from the record's start
     /// (`Parts`, by the shot's own `children`: the part the recursion had), and taken back by the
-    /// coefficients it was gathered with. A link all of whose traced rays passed (from the node's
-    /// rule and check points to the part's) is taken as seen whole from the node's fully covered
-    /// or native children ([`Rays::AllPass`](super::source::Rays)): they lie inside the node,
-    /// whose rays sampled the space between them and the part; their own children, and their
-    /// links when re-sent further, trace again.
+    /// coefficients it was gathered with. A link goes as seen whole to each child
+    /// where all its traced rays passed (from the node's rule and check points inside that child
+    /// to the part's), if the child is fully covered or native
+    /// ([`Rays::AllPass`](super::source::Rays)): the node's rays there sampled the space between
+    /// the child and the part; the child's own children, and its links when re-sent further,
+    /// trace again.
     /// The record's largest size goes to `link_records`.
     pub(super) fn refine_by_node_sums<S: Shot>(
         &self,
@@ -137,10 +138,10 @@ impl ShotContext<'_> {
             }
             let first = self.first_child(rcv, b, rroot);
             debug_assert!(first > b, "children come after their parent");
-            let sources: Vec<(S::Part, Link)> = resend
+            let sources: Vec<S::Part> = resend
                 .sources
                 .iter()
-                .map(|&link| (parts.get(link.path).clone(), link))
+                .map(|&path| parts.get(path).clone())
                 .collect();
             // A child where the link's points err within its share takes the link's
             // coefficients pushed down (their exact restriction), as if the node had kept it.
@@ -158,11 +159,10 @@ impl ShotContext<'_> {
             self.links.add(pushed);
             let links: Vec<_> = (0..4)
                 .flat_map(|c| {
-                    sources
-                        .iter()
-                        .zip(&resend.children)
-                        .filter(move |(_, &children)| children & (1 << c) != 0)
-                        .map(move |((part, link), _)| (part, *link, first + c))
+                    let sources = &sources;
+                    resend
+                        .links_to(c)
+                        .map(move |(i, link)| (&sources[i], link, first + c))
                 })
                 .collect();
             self.transfer_all(shot, &links, rcv_index, rcv, record);

@@ -314,6 +314,7 @@ impl ShotContext<'_> {
             receiver,
             self.rules.of(shape),
             self.psi.of(shape),
+            self.psi.children_of(shape),
             self.bases.of(shape).len(),
             check_points,
             rays,
@@ -343,7 +344,7 @@ impl ShotContext<'_> {
         if self.node_sums {
             let e = &received.e[..received.points];
             let deviation = self.node_sum_child_deviation(rroot)(e, &received.dh);
-            record.add(b, e, &received.dh, nr, deviation, path, received.all_pass);
+            record.add(b, e, &received.dh, nr, deviation, path, received.seen_whole);
         }
     }
 

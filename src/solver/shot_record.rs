@@ -5,7 +5,8 @@
 //! check points and the sum of their coefficients; per link only what judging and re-sending it
 //! needs: its source as a [`SourcePath`] (the children taken from the part the shot started
 //! from, rebuilt by [`Parts`]), its own deviation over the points inside each of the node's four
-//! children, whether all its traced rays passed, and its coefficients (to take it back exactly).
+//! children, the children where all its traced rays passed, and its coefficients (to take it
+//! back exactly).
 //! A link that fails its share goes again only to the children where it fails
 //! ([`NodeSum::links_to_resend`]; `a_link_goes_again_only_to_the_children_where_it_errs`).
 //! A link's record costs `LINK_ENTRY_BYTES + nr * size_of::<Rgb>()` bytes whatever its source
@@ -70,8 +71,9 @@ const _: () = assert!(super::MAX_DEPTH as u32 <= SourcePath::MAX_SPLITS);
 #[derive(Debug, Clone, Copy)]
 struct LinkEntry {
     source: SourcePath,
-    /// Every ray of the link passed (its points' rays, or those of the link it was re-sent from).
-    all_pass: bool,
+    /// The node's children all of whose points' rays passed ([`Received::seen_whole`](
+    /// super::transfer::Received)): where the link, re-sent, is taken as seen whole.
+    seen_whole: u8,
     /// The oracle's deviation of the link's point values from its coefficients, over the points
     /// inside each of the node's four children.
     deviation: [f32; 4],
@@ -178,7 +180,8 @@ impl<P> ShotRecord<P> {
 
     /// Records a link gathered at node `b`: its values `e` at the node's points, its coefficients
     /// `dh` (the first `nr` kept with the link), `deviation` of `e` from `dh` over the points
-    /// inside each of the node's children, its source, and whether all its rays passed.
+    /// inside each of the node's children, its source, and the children where all its rays
+    /// passed.
     #[allow(clippy::too_many_arguments)]
     pub fn add(
         &mut self,
@@ -188,7 +191,7 @@ impl<P> ShotRecord<P> {
         nr: usize,
         deviation: [f64; 4],
         source: SourcePath,
-        all_pass: bool,
+        seen_whole: u8,
     ) {
         let sum = self.nodes.entry(b).or_insert_with(|| NodeSum {
             e: vec![[0.0; 3]; e.len()],
@@ -202,7 +205,7 @@ impl<P> ShotRecord<P> {
         add_rgb(&mut sum.dh, dh);
         sum.links.push(LinkEntry {
             source,
-            all_pass,
+            seen_whole,
             deviation: deviation.map(|d| d as f32),
         });
         sum.link_dh.extend_from_slice(&dh[..nr]);
@@ -226,14 +229,16 @@ impl<P> ShotRecord<P> {
     }
 }
 
-/// The links a node gives back: their sources, how their rays are decided where they go (a
-/// link all of whose rays passed from the node is taken as seen whole from its children), and
-/// their coefficients, in the order they came.
+/// The links a node gives back: their sources, the children each goes to and how its rays are
+/// decided there (seen whole in a child where all its rays from the node's points inside it
+/// passed), and their coefficients, in the order they came.
 pub(super) struct Resend {
-    pub sources: Vec<Link>,
+    pub sources: Vec<SourcePath>,
     /// Per link, the children (bit `c` for child `c`) whose points' deviation exceeds the
     /// link's share: those it is sent again to. The others keep its coefficients.
     pub children: Vec<u8>,
+    /// Per link, the children where it is taken as seen whole (its `LinkEntry::seen_whole`).
+    seen_whole: Vec<u8>,
     /// `nr` per link.
     dh: Vec<Rgb>,
     nr: usize,
@@ -247,6 +252,24 @@ impl Resend {
     /// Each link's coefficients (the `nr` it was gathered with), in order.
     pub fn coefficients(&self) -> impl Iterator<Item = &[Rgb]> {
         self.dh.chunks_exact(self.nr)
+    }
+
+    /// The links sent again to child `c`, in order: each one's index among those given back,
+    /// and the link, taken as seen whole ([`Rays::AllPass`]) where all its rays from the
+    /// node's points inside `c` passed, traced otherwise.
+    pub fn links_to(&self, c: usize) -> impl Iterator<Item = (usize, Link)> + '_ {
+        debug_assert!(c < 4);
+        (0..self.len())
+            .filter(move |&i| self.children[i] & (1 << c) != 0)
+            .map(move |i| {
+                let rays = if self.seen_whole[i] & (1 << c) != 0 {
+                    Rays::AllPass
+                } else {
+                    Rays::Trace
+                };
+                let path = self.sources[i];
+                (i, Link { path, rays })
+            })
     }
 }
 
@@ -272,6 +295,7 @@ impl NodeSum {
         let mut resend = Resend {
             sources: Vec::new(),
             children: Vec::new(),
+            seen_whole: Vec::new(),
             dh: Vec::new(),
             nr,
         };
@@ -280,17 +304,10 @@ impl NodeSum {
                 .filter(|&c| f64::from(l.deviation[c]) > share)
                 .fold(0u8, |m, c| m | 1 << c);
             if children != 0 {
-                let rays = if l.all_pass {
-                    Rays::AllPass
-                } else {
-                    Rays::Trace
-                };
-                resend.sources.push(Link {
-                    path: l.source,
-                    rays,
-                });
+                resend.sources.push(l.source);
                 resend.dh.extend_from_slice(dh);
                 resend.children.push(children);
+                resend.seen_whole.push(l.seen_whole);
             }
         }
         // Empty only by rounding (the sum's deviation is at most the links' sum): nothing to do.
@@ -381,20 +398,12 @@ mod tests {
 
     fn add(r: &mut ShotRecord<()>, b: usize, values: &[f64], i: usize) {
         let (e, dh) = link(values);
-        r.add(
-            b,
-            &e,
-            &dh,
-            1,
-            [constant_deviation(&e, &dh); 4],
-            path(i),
-            false,
-        );
+        r.add(b, &e, &dh, 1, [constant_deviation(&e, &dh); 4], path(i), 0);
     }
 
     fn resent(sum: NodeSum, allowed: f64) -> Option<Vec<usize>> {
         sum.links_to_resend(allowed, constant_deviation)
-            .map(|r| r.sources.iter().map(|l| index(l.path)).collect())
+            .map(|r| r.sources.iter().map(|&p| index(p)).collect())
     }
 
     #[test]
@@ -436,16 +445,16 @@ mod tests {
             let (e, dh) = link(&[0.1, 0.0]);
             let d = constant_deviation(&e, &dh);
             let deviation = if i == 3 { [0.0, d, 0.0, 0.0] } else { [d; 4] };
-            r.add(0, &e, &dh, 1, deviation, path(i), false);
+            r.add(0, &e, &dh, 1, deviation, path(i), 0);
         }
         let (_, sum) = r.pop_first().expect("recorded");
         let resend = sum
             .links_to_resend(0.2, constant_deviation)
             .expect("the sum fails");
         assert_eq!(resend.len(), 10);
-        for (l, &children) in resend.sources.iter().zip(&resend.children) {
-            let expected = if index(l.path) == 3 { 0b0010 } else { 0b1111 };
-            assert_eq!(children, expected, "link {}", index(l.path));
+        for (&p, &children) in resend.sources.iter().zip(&resend.children) {
+            let expected = if index(p) == 3 { 0b0010 } else { 0b1111 };
+            assert_eq!(children, expected, "link {}", index(p));
         }
     }
 
@@ -497,25 +506,54 @@ mod tests {
             }
             // Links 1 and 3 deviate: they go back; all of link 3's rays passed.
             let deviation = if i % 2 == 1 { 1.0 } else { 0.0 };
-            r.add(2, &e, &dh, nr, [deviation; 4], path(i), i == 3);
+            let seen_whole = if i == 3 { 0b1111 } else { 0 };
+            r.add(2, &e, &dh, nr, [deviation; 4], path(i), seen_whole);
         }
         let (_, sum) = r.pop_first().expect("recorded");
         let resend = sum.links_to_resend(0.5, |_, _| 1.0).expect("fails");
         assert_eq!(resend.len(), 2);
-        let got: Vec<(usize, Rays, Vec<Rgb>)> = resend
-            .sources
-            .iter()
-            .zip(resend.coefficients())
-            .map(|(l, dh)| (index(l.path), l.rays, dh.to_vec()))
-            .collect();
-        for (i, rays, dh) in got {
-            assert!(i == 1 || i == 3);
+        for (c, links) in (0..4).map(|c| (c, resend.links_to(c).collect::<Vec<_>>())) {
+            let got: Vec<(usize, Rays)> = links
+                .iter()
+                .map(|&(_, l)| (index(l.path), l.rays))
+                .collect();
             // A link whose rays all passed is taken as seen whole from the node's children.
-            let want_rays = if i == 3 { Rays::AllPass } else { Rays::Trace };
-            assert_eq!(rays, want_rays);
+            assert_eq!(got, [(1, Rays::Trace), (3, Rays::AllPass)], "child {c}");
+        }
+        for (&p, dh) in resend.sources.iter().zip(resend.coefficients()) {
+            let i = index(p);
             let want: Vec<Rgb> = (0..nr).map(|a| [(10 * i + a) as f64, 0.5, -1.0]).collect();
             assert_eq!(dh, want);
         }
+    }
+
+    #[test]
+    fn a_link_goes_as_seen_whole_only_to_the_children_where_its_rays_passed() {
+        // Two links whose sum fails, each erring in children 0, 1 and 2; link 0's rays passed
+        // from the node's points in children 0 and 3, link 1's in child 1.
+        let mut r = ShotRecord::<()>::default();
+        for (i, seen_whole) in [(0, 0b1001), (1, 0b0010)] {
+            let (e, dh) = link(&[1.0, 0.0]);
+            r.add(0, &e, &dh, 1, [0.5, 0.5, 0.5, 0.0], path(i), seen_whole);
+        }
+        let (_, sum) = r.pop_first().expect("recorded");
+        let resend = sum
+            .links_to_resend(0.1, constant_deviation)
+            .expect("the sum fails");
+        let sent = |c: usize| -> Vec<(usize, Rays)> {
+            resend
+                .links_to(c)
+                .map(|(i, l)| {
+                    assert_eq!(resend.sources[i], l.path, "the index is the link's");
+                    (index(l.path), l.rays)
+                })
+                .collect()
+        };
+        assert_eq!(sent(0), [(0, Rays::AllPass), (1, Rays::Trace)]);
+        assert_eq!(sent(1), [(0, Rays::Trace), (1, Rays::AllPass)]);
+        assert_eq!(sent(2), [(0, Rays::Trace), (1, Rays::Trace)]);
+        // Child 3 keeps both links' coefficients, though link 0 passed there.
+        assert_eq!(sent(3), []);
     }
 
     #[test]
@@ -530,7 +568,7 @@ mod tests {
             let dh = [[1.0; 3]; MAX_FUNCTIONS];
             let links = 10_000;
             for i in 0..links {
-                r.add(i % 7, &e, &dh, nr, [0.0; 4], path(i % 4096), false);
+                r.add(i % 7, &e, &dh, nr, [0.0; 4], path(i % 4096), 0);
             }
             let per_link = (LINK_ENTRY_BYTES + nr * size_of::<Rgb>()) as u64;
             let within = |held: LinkBytes| {

@@ -41,11 +41,13 @@ pub(super) struct Received {
     pub exchange_seen_by_receiver: f64,
     /// Rule points where the touching fallback stood in.
     pub touching: u64,
-    /// Rays were traced from every point (rule and check points), and all passed. Never after
-    /// [`Rays::AllPass`]: a link taken as seen whole is not passed on so again (the rays traced
-    /// from a node sample what its children see, not its grandchildren); nor after
+    /// The node's children (bit `c` for child `c`) from every point inside which (rule and check
+    /// points, [`BasisAtControlPoints::children_of`](super::rules::BasisAtControlPoints)) rays
+    /// were traced and all passed: where a link re-sent to a child is taken as seen whole. Never
+    /// after [`Rays::AllPass`]: a link taken as seen whole is not passed on so again (the rays
+    /// traced from a node sample what its children see, not its grandchildren); nor after
     /// [`Rays::Centre`] (one ray per point does not sample the source).
-    pub all_pass: bool,
+    pub seen_whole: u8,
     /// Each point's shadow-ray verdicts ([`PointIrradiance::seen`](super::source::PointIrradiance),
     /// 0 where no ray was cast), and whether the oracle's verdict rays disagreed with them, once
     /// it asked (`oracle.rs`): what the link's receiver keeps for the shooter's next shots
@@ -88,13 +90,15 @@ impl Received {
 /// one does takes that point's answer, asking the source nothing ([`ReceiverNode::alike`]: on
 /// an extended root's node the first with the same stand-in, on a native root the first at the
 /// same place). `rays` says how the shadow rays are decided, unless an earlier shot's verdicts
-/// for this link are `known`.
+/// for this link are `known`. `kids`: the children each point lies in, for
+/// [`Received::seen_whole`].
 #[allow(clippy::too_many_arguments)]
 pub(super) fn receive(
     source: &impl Source,
     receiver: &ReceiverNode,
     rule: &[QuadPoint],
     psi: &[[f64; MAX_FUNCTIONS]],
+    kids: &[u8],
     nr: usize,
     check_points: usize,
     rays: Rays,
@@ -115,7 +119,7 @@ pub(super) fn receive(
         coverage_err: 0.0,
         exchange_seen_by_receiver: 0.0,
         touching: 0,
-        all_pass: rays == Rays::Trace,
+        seen_whole: 0,
         seen: [0; MAX_POINTS],
         form_factors: [0.0; MAX_POINTS],
         verdict_rays: Cell::new(known.and_then(KnownVerdicts::verdict_rays)),
@@ -126,14 +130,16 @@ pub(super) fn receive(
         debug_assert!(i <= k);
         (i != k).then_some(i)
     };
-    // Rule points where the touching fallback stood in.
+    // Rule points where the touching fallback stood in; points all of whose rays passed.
     let mut touching = 0u32;
+    let mut passed = 0u32;
     let covered = |k: usize| receiver.cover.as_ref().map_or(1.0, |c| c.alpha[k]);
     for k in 0..out.points {
         if let Some(i) = asked_before(k) {
             out.e[k] = out.e[i];
             out.seen[k] = out.seen[i];
             out.form_factors[k] = out.form_factors[i];
+            passed |= (passed >> i & 1) << k;
             // A rule point copies a rule point (they come first): what it adds is its own
             // weight's share (nothing where the copied one had no answer: its values are
             // zero); the largest values and any-flags already hold the copied one's.
@@ -154,13 +160,12 @@ pub(super) fn receive(
             Some(q) => receiving_point(root, &receiver.patch, receiver.cover, k, q.st),
             None => receiver.check_point(k - nk),
         };
+        // None: no ray sampled what this point's neighbours in a child may see.
         let Some(p) = source.irradiance_at(x, root.normal, ignore, rays, known.map(|v| v.point(k)))
         else {
-            // No ray sampled what this point's neighbours in a child may see.
-            out.all_pass = false;
             continue;
         };
-        out.all_pass &= p.any_visible && !p.any_blocked;
+        passed |= u32::from(p.any_visible && !p.any_blocked) << k;
         out.e[k] = p.e;
         out.seen[k] = p.seen;
         out.form_factors[k] = p.form_factor;
@@ -182,7 +187,19 @@ pub(super) fn receive(
             p.touching,
         );
     }
+    if rays == Rays::Trace {
+        out.seen_whole = children_seen_whole(passed, &kids[..out.points]);
+    }
     out
+}
+
+/// The children (bit `c`) every point inside which passed (bit `k` of `passed` for point `k`,
+/// which lies in the children `kids[k]`): each point that did not pass takes its children out.
+fn children_seen_whole(passed: u32, kids: &[u8]) -> u8 {
+    kids.iter()
+        .enumerate()
+        .filter(|&(k, _)| passed >> k & 1 == 0)
+        .fold(0b1111, |whole, (_, &m)| whole & !m)
 }
 
 #[cfg(test)]
@@ -191,6 +208,7 @@ mod tests {
     use crate::domain::Shape;
     use crate::solver::far_field::tests::square_under_square;
     use crate::solver::hierarchy::Hierarchy;
+    use crate::solver::near_verdicts::ALL_VISIBLE;
     use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
     use glam::{DVec2, DVec3};
 
@@ -211,12 +229,38 @@ mod tests {
             node,
             rules.of(shape),
             psi.of(shape),
+            psi.children_of(shape),
             bases.of(shape).len(),
             corner_probe_points(shape).len(),
             rays,
             None,
         );
         (got, visibility.rays_traced() - before)
+    }
+
+    /// The children seen whole, against a brute force (a child is, when every point inside it
+    /// passed), for every pattern of passing points of each shape's M2 control points.
+    #[test]
+    fn a_child_is_seen_whole_when_every_point_inside_it_passed() {
+        let at = BasisAtControlPoints::new(&Bases::new(2), &Rules::new(2));
+        for shape in [Shape::Triangle, Shape::Parallelogram] {
+            let kids = at.children_of(shape);
+            assert!(kids.len() < 16);
+            for passed in 0..1u32 << kids.len() {
+                let brute = (0..4)
+                    .filter(|&c| {
+                        (0..kids.len())
+                            .filter(|&k| kids[k] & (1 << c) != 0)
+                            .all(|k| passed & (1 << k) != 0)
+                    })
+                    .fold(0u8, |m, c| m | 1 << c);
+                assert_eq!(
+                    children_seen_whole(passed, kids),
+                    brute,
+                    "{shape:?} {passed:b}"
+                );
+            }
+        }
     }
 
     /// The receiver of `square_under_square` (its root node) asked at its rule and check points
@@ -231,21 +275,34 @@ mod tests {
     }
 
     /// Rays taken as passing trace none and deliver what an open scene delivers, blocker or not;
-    /// `all_pass` says whether traced rays all passed, and never passes a taken verdict on.
+    /// `seen_whole` says in which children traced rays all passed (against a brute force over
+    /// the points' verdicts), and never passes a taken verdict on.
     #[test]
     fn rays_taken_as_passing_trace_none_and_see_the_source_whole() {
         let (open, open_rays) = received(false, Rays::Trace);
         assert!(open_rays > 0);
-        assert!(open.all_pass && open.any_visible && !open.any_blocked);
+        assert!(open.seen_whole == 0b1111 && open.any_visible && !open.any_blocked);
         let (shadowed, _) = received(true, Rays::Trace);
-        assert!(!shadowed.all_pass && shadowed.any_blocked);
+        assert!(shadowed.seen_whole != 0b1111 && shadowed.any_blocked);
+        // Child by child: set where every point inside it saw all of the source.
+        let kids = BasisAtControlPoints::new(&Bases::new(2), &Rules::new(2))
+            .children_of(Shape::Parallelogram)
+            .to_vec();
+        let brute = (0..4)
+            .filter(|&c| {
+                (0..shadowed.points)
+                    .filter(|&k| kids[k] & (1 << c) != 0)
+                    .all(|k| shadowed.seen[k] == ALL_VISIBLE)
+            })
+            .fold(0u8, |m, c| m | 1 << c);
+        assert_eq!(shadowed.seen_whole, brute);
         assert!(shadowed.e[..shadowed.points] != open.e[..open.points]);
         let (taken, taken_rays) = received(true, Rays::AllPass);
         assert_eq!(taken_rays, 0);
         assert_eq!(taken.e[..taken.points], open.e[..open.points]);
         assert_eq!(taken.dh, open.dh);
         assert!(taken.any_visible && !taken.any_blocked);
-        assert!(!taken.all_pass, "a taken verdict is not passed on");
+        assert_eq!(taken.seen_whole, 0, "a taken verdict is not passed on");
     }
 
     /// A parallelogram's check point at its centre, where its M2 rule has a point, takes that
@@ -362,7 +419,10 @@ mod tests {
                 (got.unoccluded_max, got.source_side_err, got.coverage_err),
                 (each.unoccluded_max, each.source_side_err, each.coverage_err)
             );
-            assert_eq!((got.all_pass, got.touching), (each.all_pass, each.touching));
+            assert_eq!(
+                (got.seen_whole, got.touching),
+                (each.seen_whole, each.touching)
+            );
         });
     }
 
@@ -377,8 +437,8 @@ mod tests {
         assert_eq!(rays, centre.points as u64 - 1);
         assert_eq!(centre.e[..centre.points], open.e[..open.points]);
         assert_eq!(centre.dh, open.dh);
-        assert!(
-            !centre.all_pass,
+        assert_eq!(
+            centre.seen_whole, 0,
             "one ray per point is not passed on as seen whole"
         );
         let (shadowed, _) = received(true, Rays::Centre);
