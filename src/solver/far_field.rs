@@ -242,6 +242,17 @@ pub(super) mod tests {
         blocked: bool,
         f: impl FnOnce(&ElementSource, &ElementRoot, &Visibility) -> R,
     ) -> R {
+        let c = DVec3::new(0.5, 0.5, 10.0);
+        let half = DVec3::new(0.1, 0.1, 0.0);
+        square_under_square_blocked_by(blocked.then_some((c - half, c + half)), f)
+    }
+
+    /// [`square_under_square`] with a blocker of its own: the horizontal rectangle between the
+    /// two corners `(low, high)` (the same height), or nothing.
+    pub(in crate::solver) fn square_under_square_blocked_by<R>(
+        blocker: Option<(DVec3, DVec3)>,
+        f: impl FnOnce(&ElementSource, &ElementRoot, &Visibility) -> R,
+    ) -> R {
         use crate::solver::element_source::tests::shot_of_first_root;
         use crate::solver::element_source::SourceElement;
         use crate::solver::hierarchy::Hierarchy;
@@ -258,17 +269,14 @@ pub(super) mod tests {
         coeffs[0] = roots[0].exitance;
         let n = bases.of(Shape::Parallelogram).len();
         let element = SourceElement::root(&roots[0], coeffs, n, None, None);
-        let c = DVec3::new(0.5, 0.5, 10.0);
-        let (a, b, d, e) = (
-            c + DVec3::new(-0.1, -0.1, 0.0),
-            c + DVec3::new(0.1, -0.1, 0.0),
-            c + DVec3::new(0.1, 0.1, 0.0),
-            c + DVec3::new(-0.1, 0.1, 0.0),
-        );
-        let visibility = if blocked {
-            Visibility::new([([a, b, d], 7), ([a, d, e], 7)], 30.0)
-        } else {
-            Visibility::new(Vec::new(), 30.0)
+        let visibility = match blocker {
+            Some((lo, hi)) => {
+                debug_assert_eq!(lo.z, hi.z, "a horizontal rectangle");
+                let (a, b) = (lo, DVec3::new(hi.x, lo.y, lo.z));
+                let (d, e) = (hi, DVec3::new(lo.x, hi.y, lo.z));
+                Visibility::new([([a, b, d], 7), ([a, d, e], 7)], 30.0)
+            }
+            None => Visibility::new(Vec::new(), 30.0),
         };
         let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, true);
         let source = shot.source(&element, [1.0; 3]).expect("an emitting source");

@@ -82,7 +82,8 @@ struct LinkEntry {
 /// Bytes of one link's entry beside its `nr` coefficients.
 pub(super) const LINK_ENTRY_BYTES: usize = size_of::<LinkEntry>();
 
-// A link's entry is a path, a flag and a deviation: never its source part or its point values.
+// A link's entry is a path, a child mask and a deviation: never its source part or its point
+// values.
 const _: () = assert!(LINK_ENTRY_BYTES <= 24);
 
 /// The per-link entries of a record at their largest: their bytes (as allocated) and the links
@@ -517,7 +518,7 @@ mod tests {
                 .iter()
                 .map(|&(_, l)| (index(l.path), l.rays))
                 .collect();
-            // A link whose rays all passed is taken as seen whole from the node's children.
+            // A link whose rays all passed is taken as seen whole in every child.
             assert_eq!(got, [(1, Rays::Trace), (3, Rays::AllPass)], "child {c}");
         }
         for (&p, dh) in resend.sources.iter().zip(resend.coefficients()) {

@@ -35,8 +35,9 @@ pub(super) enum Rays {
     Trace,
     /// Take every one as passing, tracing none: a link the node-sum check re-sends to a child of
     /// its node where all its rays from the node's points inside the child passed
-    /// (`node_sums.rs`), on a fully covered or native child, and the source's parts if the oracle splits the source there (not the
-    /// child's children: they trace). No ray checks the oracle's verdict either.
+    /// (`node_sums.rs`), on a fully covered or native child, and the source's parts if the
+    /// oracle splits the source there (not the child's children: they trace). No ray checks the
+    /// oracle's verdict either.
     AllPass,
     /// One ray per receiver point, to the source's centre, its verdict standing for every sample
     /// of the source (as a far link's one ray does): an indirect shot's link to a receiver apart

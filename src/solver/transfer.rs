@@ -16,7 +16,8 @@ use crate::scene::Rgb;
 use std::cell::Cell;
 
 // Every evaluation zeroes its arrays of `MAX_POINTS` (a receiver's rule and check points); the
-// rule points where the touching fallback stood in are bits of a `u32`.
+// rule points where the touching fallback stood in, and the rule and check points all of whose
+// rays passed, are bits of a `u32`.
 use super::cover::MAX_POINTS;
 const _: () = assert!(MAX_POINTS <= u32::BITS as usize);
 
@@ -43,7 +44,8 @@ pub(super) struct Received {
     pub touching: u64,
     /// The node's children (bit `c` for child `c`) from every point inside which (rule and check
     /// points, [`BasisAtControlPoints::children_of`](super::rules::BasisAtControlPoints)) rays
-    /// were traced and all passed: where a link re-sent to a child is taken as seen whole. Never
+    /// were traced (or an earlier shot's verdicts for them read back) and all passed: where a
+    /// link re-sent to a child is taken as seen whole. Never
     /// after [`Rays::AllPass`]: a link taken as seen whole is not passed on so again (the rays
     /// traced from a node sample what its children see, not its grandchildren); nor after
     /// [`Rays::Centre`] (one ray per point does not sample the source).
@@ -195,6 +197,9 @@ pub(super) fn receive(
 
 /// The children (bit `c`) every point inside which passed (bit `k` of `passed` for point `k`,
 /// which lies in the children `kids[k]`): each point that did not pass takes its children out.
+/// A child that holds none of the points counts as seen whole: with the check points every
+/// child holds some (`control_points_know_the_children_they_lie_in`); with the rule points
+/// alone the node-sum check, the only reader, is off.
 fn children_seen_whole(passed: u32, kids: &[u8]) -> u8 {
     kids.iter()
         .enumerate()
@@ -206,7 +211,7 @@ fn children_seen_whole(passed: u32, kids: &[u8]) -> u8 {
 mod tests {
     use super::*;
     use crate::domain::Shape;
-    use crate::solver::far_field::tests::square_under_square;
+    use crate::solver::far_field::tests::{square_under_square, square_under_square_blocked_by};
     use crate::solver::hierarchy::Hierarchy;
     use crate::solver::near_verdicts::ALL_VISIBLE;
     use crate::solver::rules::{corner_probe_points, Bases, BasisAtControlPoints, Rules};
@@ -274,9 +279,39 @@ mod tests {
         })
     }
 
+    /// A blocker just under the receiver's corner at (1, 1) shades only points of child 3 (the
+    /// rule point at (0.887, 0.887) and the check point at (0.98, 0.98)): the other three
+    /// children are seen whole, as a brute force over the points' verdicts says.
+    #[test]
+    fn a_child_is_seen_whole_where_the_rays_from_its_points_all_passed() {
+        let blocker = (DVec3::new(0.8, 0.8, 19.9), DVec3::new(1.0, 1.0, 19.9));
+        let got = square_under_square_blocked_by(Some(blocker), |source, root, visibility| {
+            let h = Hierarchy::new(Bases::new(2).of(root.shape).len());
+            let rules = Rules::new(2);
+            let node = ReceiverNode::new(root, &h, 0, &rules);
+            receive_counting(source, &node, visibility, Rays::Trace).0
+        });
+        let kids = BasisAtControlPoints::new(&Bases::new(2), &Rules::new(2))
+            .children_of(Shape::Parallelogram)
+            .to_vec();
+        let shaded: Vec<usize> = (0..got.points)
+            .filter(|&k| got.seen[k] != ALL_VISIBLE)
+            .collect();
+        assert_eq!(
+            shaded.len(),
+            2,
+            "the two points under the blocker: {shaded:?}"
+        );
+        assert!(
+            shaded.iter().all(|&k| kids[k] == 0b1000),
+            "{shaded:?} lie in child 3 only"
+        );
+        assert_eq!(got.seen_whole, 0b0111);
+    }
+
     /// Rays taken as passing trace none and deliver what an open scene delivers, blocker or not;
-    /// `seen_whole` says in which children traced rays all passed (against a brute force over
-    /// the points' verdicts), and never passes a taken verdict on.
+    /// `seen_whole` says in which children traced rays all passed, and never passes a taken
+    /// verdict on.
     #[test]
     fn rays_taken_as_passing_trace_none_and_see_the_source_whole() {
         let (open, open_rays) = received(false, Rays::Trace);
@@ -284,18 +319,8 @@ mod tests {
         assert!(open.seen_whole == 0b1111 && open.any_visible && !open.any_blocked);
         let (shadowed, _) = received(true, Rays::Trace);
         assert!(shadowed.seen_whole != 0b1111 && shadowed.any_blocked);
-        // Child by child: set where every point inside it saw all of the source.
-        let kids = BasisAtControlPoints::new(&Bases::new(2), &Rules::new(2))
-            .children_of(Shape::Parallelogram)
-            .to_vec();
-        let brute = (0..4)
-            .filter(|&c| {
-                (0..shadowed.points)
-                    .filter(|&k| kids[k] & (1 << c) != 0)
-                    .all(|k| shadowed.seen[k] == ALL_VISIBLE)
-            })
-            .fold(0u8, |m, c| m | 1 << c);
-        assert_eq!(shadowed.seen_whole, brute);
+        // The blocker at half height is under some ray of every point: no child is seen whole.
+        assert_eq!(shadowed.seen_whole, 0);
         assert!(shadowed.e[..shadowed.points] != open.e[..open.points]);
         let (taken, taken_rays) = received(true, Rays::AllPass);
         assert_eq!(taken_rays, 0);
