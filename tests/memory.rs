@@ -81,8 +81,8 @@ fn a_tighter_tolerance_adds_memory_by_elements_not_by_links() {
         "{grown} bytes for {} links",
         stats.links
     );
-    // A link's entry: its path, flag and per-child deviations (24 bytes) and 4 coefficients of 24
-    // bytes, with at most as much again of the vectors' spare capacity.
+    // A link's entry: its path, child mask and per-child deviations (24 bytes) and 4
+    // coefficients of 24 bytes, with at most as much again of the vectors' spare capacity.
     let entry = (24 + 4 * 24) as f64;
     assert!(
         stats.bytes_per_link >= entry && stats.bytes_per_link <= 2.0 * entry,
