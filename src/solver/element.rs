@@ -164,6 +164,46 @@ impl Emitter {
     }
 }
 
+/// An upper bound on the unoccluded form factor ([`Emitter::form_factor`]) from a differential
+/// area to any part of one patch (the whole patch, or the face inside it), from the patch's
+/// plane, its corners' sphere and its area alone: no contour integral. The kernel
+/// `cos_x cos_p / (pi r^2)` at a patch point `p` is `(n . (p - x)) h / (pi r^4)`, `h` the
+/// height of `x` over the plane, with `r` at least the distance `d` from `x` to the sphere and
+/// `n . (p - x)` at most `n . (c - x) + radius`. Pinned by
+/// `tests::the_form_factor_bound_is_never_below_the_form_factor`.
+pub(super) struct FormFactorBound {
+    normal: DVec3,
+    origin: DVec3,
+    sphere: Sphere,
+    area: f64,
+}
+
+impl FormFactorBound {
+    pub(super) fn new(root: &ElementRoot, patch: &Patch) -> Self {
+        FormFactorBound {
+            normal: root.normal,
+            origin: patch.origin,
+            sphere: Sphere::around(&patch.corners(root.shape)),
+            area: patch.area,
+        }
+    }
+
+    /// The bound at `x` (normal `n`): 0 behind the plane (as the form factor), infinite where
+    /// `x` lies in the sphere.
+    pub(super) fn at(&self, x: DVec3, n: DVec3) -> f64 {
+        let height = self.normal.dot(x - self.origin);
+        if height <= 0.0 {
+            return 0.0;
+        }
+        let d = x.distance(self.sphere.centre) - self.sphere.radius;
+        if d <= 0.0 {
+            return f64::INFINITY;
+        }
+        let facing = (n.dot(self.sphere.centre - x) + self.sphere.radius).max(0.0);
+        self.area * height * facing / (std::f64::consts::PI * d.powi(4))
+    }
+}
+
 /// World geometry of a sub-element given its map in the root's reference coordinates.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Patch {
@@ -221,6 +261,49 @@ pub(super) mod tests {
             exitance: [0.0; 3],
             reflectance: None,
         }
+    }
+
+    /// The bound is at or above the exact form factor wherever it is finite, on whole patches and
+    /// on the face inside a partly covered one, at random points near and far (in front of the
+    /// patch and behind it) with random normals; and finite beyond the patch's sphere.
+    #[test]
+    fn the_form_factor_bound_is_never_below_the_form_factor() {
+        let mut rnd = crate::shuffle::uniform_sequence(23);
+        let mut compared = 0;
+        for case in 0..400 {
+            let v =
+                |rnd: &mut dyn FnMut() -> f64| DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+            let (u, w) = (v(&mut rnd) * 3.0, v(&mut rnd) * 3.0);
+            let mut root = parallelogram_root(v(&mut rnd), u, w);
+            if case % 2 == 1 {
+                root.shape = Shape::Triangle;
+            }
+            let map = ChildMap::IDENTITY;
+            let patch = Patch::new(&root, &map);
+            // Every other case, a sliver of the patch as rings: its form factor is smaller.
+            let rings = (case % 4 == 2).then(|| {
+                let ring = [
+                    DVec2::new(0.1, 0.1),
+                    DVec2::new(0.6, 0.2),
+                    DVec2::new(0.3, 0.5),
+                ];
+                world_rings(&root, &[ring.to_vec()])
+            });
+            let emitter = Emitter::new(&root, &patch, rings.as_ref());
+            let bound = FormFactorBound::new(&root, &patch);
+            for _ in 0..20 {
+                let scale = [0.5, 2.0, 10.0, 50.0][(rnd() * 4.0) as usize];
+                let x = patch.origin + v(&mut rnd) * scale;
+                let n = v(&mut rnd).normalize();
+                let (f, b) = (emitter.form_factor(x, n), bound.at(x, n));
+                assert!(b >= f * (1.0 - 1e-9), "bound {b} under {f} at {x} {n}");
+                if x.distance(bound.sphere.centre) > bound.sphere.radius {
+                    assert!(b.is_finite());
+                }
+                compared += usize::from(b.is_finite() && f > 0.0);
+            }
+        }
+        assert!(compared > 1000, "{compared}");
     }
 
     /// A native unit square in the plane z = 0, facing +z.

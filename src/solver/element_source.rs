@@ -17,7 +17,7 @@
 use super::basis::{child_maps, ChildMap, MAX_FUNCTIONS};
 use super::cover::{NodeCover, MAX_RULE_POINTS};
 use super::element::{
-    partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, Patch,
+    partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, FormFactorBound, Patch,
 };
 use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
@@ -348,14 +348,39 @@ impl<'s> ElementSource<'s> {
     /// wholly in front of `x`), else the exact contour integral. The rule's sum is what
     /// [`ElementSource::with_verdicts`] sums, term by term, so the rescaling there is exactly 1.
     fn form_factor(&self, x: DVec3, n: DVec3) -> f64 {
+        self.form_factor_and_terms(x, n).0
+    }
+
+    /// [`ElementSource::form_factor`], and where it is the rule's sum, the rule's terms it summed
+    /// ([`ElementSource::point_terms`]), for [`ElementSource::with_verdicts`] to sum again
+    /// without computing them twice.
+    fn form_factor_and_terms(&self, x: DVec3, n: DVec3) -> (f64, Option<[f64; POINTS]>) {
         if self
             .emitter
             .rule_suffices(x, n, self.shot.rules.form_factor_radii)
         {
-            self.rule_form_factor(x, n)
+            let terms = self.point_terms(x, n);
+            let f = terms[..self.rule.len()]
+                .iter()
+                .filter(|&&kxy| kxy > 0.0)
+                .fold(0.0, |sum, &kxy| sum + kxy);
+            debug_assert_eq!(f.to_bits(), self.rule_form_factor(x, n).to_bits());
+            (f, Some(terms))
         } else {
-            self.emitter.form_factor(x, n)
+            (self.emitter.form_factor(x, n), None)
         }
+    }
+
+    /// Each rule point's [`ElementSource::point_term`] at `x` (normal `n`); 0 where the point
+    /// does not emit (`alpha` 0), as the sums over emitting points skip it.
+    fn point_terms(&self, x: DVec3, n: DVec3) -> [f64; POINTS] {
+        let mut terms = [0.0; POINTS];
+        for (l, ql) in self.rule.iter().enumerate() {
+            if self.alpha[l] > 0.0 {
+                terms[l] = self.point_term(l, ql.weight, x, n);
+            }
+        }
+        terms
     }
 
     /// Rule point `l`'s term of the form factor at `x` (normal `n`): the kernel times the
@@ -390,7 +415,15 @@ impl<'s> ElementSource<'s> {
     /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from
     /// [`ElementSource::form_factor`]) given the verdicts `seen` of its emitting rule points, bit
     /// `i` for the `i`-th of them.
-    fn with_verdicts(&self, x: DVec3, n: DVec3, f: f64, mut seen: u64) -> PointIrradiance {
+    /// `terms`: the rule's terms at `x` when the caller has them ([`ElementSource::point_terms`]).
+    fn with_verdicts(
+        &self,
+        x: DVec3,
+        n: DVec3,
+        f: f64,
+        mut seen: u64,
+        terms: Option<&[f64; POINTS]>,
+    ) -> PointIrradiance {
         let unoccluded = f * self.strength;
         let mut out = PointIrradiance {
             unoccluded,
@@ -408,7 +441,10 @@ impl<'s> ElementSource<'s> {
             if alpha[l] <= 0.0 {
                 continue;
             }
-            let kxy = self.point_term(l, ql.weight, x, n);
+            let kxy = match terms {
+                Some(t) => t[l],
+                None => self.point_term(l, ql.weight, x, n),
+            };
             let vis = seen & 1 == 1;
             seen >>= 1;
             if vis {
@@ -613,7 +649,10 @@ impl Source for ElementSource<'_> {
         rays: Rays,
         known: Option<KnownPoint>,
     ) -> Option<PointIrradiance> {
-        let f = known.map_or_else(|| self.form_factor(x, n), |k| k.form_factor);
+        let (f, terms) = match known {
+            Some(k) => (k.form_factor, None),
+            None => self.form_factor_and_terms(x, n),
+        };
         if f <= 0.0 {
             return None;
         }
@@ -628,7 +667,7 @@ impl Source for ElementSource<'_> {
             || self.trace_rule(x, ignore),
             || self.centre_verdict(x, ignore),
         );
-        Some(self.with_verdicts(x, n, f, seen))
+        Some(self.with_verdicts(x, n, f, seen, terms.as_ref()))
     }
 
     fn unoccluded_irradiance(&self, x: DVec3, n: DVec3) -> Rgb {
@@ -682,9 +721,23 @@ impl Source for ElementSource<'_> {
             // its neighbours on the face check.
             return None;
         }
+        let n = self.rule.len();
+        // The exact exchange is asked only when a bound on it could reach ten times the
+        // receiver's (a sky piece far above a small receiver is decided here).
+        let bound = FormFactorBound::new(r.root, &r.patch);
+        let source_bound: f64 = self
+            .rule
+            .iter()
+            .zip(self.ys[..n].iter().zip(&self.alpha[..n]))
+            .filter(|(_, (_, &a))| a > 0.0)
+            .map(|(q, (&y, &a))| q.weight * a * bound.at(y, self.root.normal))
+            .sum::<f64>()
+            * self.patch.area;
+        if seen_by_receiver >= MISSED_EXCHANGE_RATIO * source_bound * (1.0 + 1e-6) {
+            return None;
+        }
         let rings = partial_face_rings(r.root, &r.map, r.cover);
         let receiver = Emitter::new(r.root, &r.patch, rings.as_ref());
-        let n = self.rule.len();
         let seen_by_source: f64 = self
             .rule
             .iter()

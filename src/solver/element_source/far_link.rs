@@ -65,7 +65,7 @@ impl ElementSource<'_> {
             // What `with_verdicts` gives with no point seen.
             return Some([0.0; 3]);
         }
-        Some(rule_e.unwrap_or_else(|| self.with_verdicts(x, n, f, u64::MAX).e))
+        Some(rule_e.unwrap_or_else(|| self.with_verdicts(x, n, f, u64::MAX, None).e))
     }
 
     /// The verdicts of every rule point from `x` as one shadow ray to the source's centre
