@@ -27,7 +27,9 @@ use super::quadrature::{self, QuadPoint};
 use super::refine::Shot;
 use super::rules::{corner_probe_points, Bases, Rules, CORNER_INSET};
 use super::shot_record::SourcePath;
-use super::source::{KnownPoint, PointIrradiance, Rays, ReceiverNode, Source, SourceSplit};
+use super::source::{
+    KnownPoint, PointIrradiance, Rays, ReceiverNode, Source, SourceSplit, SPREAD_RAYS,
+};
 use super::visibility::Visibility;
 use super::MAX_DEPTH;
 use crate::domain::{ElementRoot, ElementStatus};
@@ -795,13 +797,6 @@ fn trace_packet(visibility: &Visibility, x: DVec3, targets: &[DVec3], ignore: [u
         seen
     }
 }
-
-/// Rays between points spread over the two elements of a link whose quadrature rays all agree
-/// while the unoccluded transfer exceeds the threshold. With the sky panel's 9 points (M2) and
-/// the corner probes all blocked by a parapet, a 2.5 cm face behind it took a third of its light
-/// (the Kenney building: 3.3 % nrms; 16 rays still miss the strip of sky it sees, 32 find it:
-/// 2.7 %; 64 leave a margin, for 2-25 % more rays in the reference scenes).
-const SPREAD_RAYS: usize = 64;
 
 /// An element's rule carried onto its part in front of a receiver point's plane
 /// ([`ElementSource::front_rule`]): the points, their weights (the rule's times the map's

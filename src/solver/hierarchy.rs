@@ -36,6 +36,9 @@ impl Node {
     }
 }
 
+/// A node's spread points on the face, in root coordinates, once asked for.
+pub(super) type SpreadPoints = std::sync::OnceLock<Box<[DVec2]>>;
+
 /// The hierarchy of one element root. Coefficient arrays hold `len` entries per node.
 #[derive(Debug, Clone, Default)]
 pub struct Hierarchy {
@@ -57,6 +60,10 @@ pub struct Hierarchy {
     /// Roots whose reflectance varies only: per node, its reflectance
     /// ([`super::node_reflectance`]); empty otherwise (the root's `rho` holds everywhere).
     pub reflectance: Vec<NodeReflectance>,
+    /// Extended roots only: per node, where its spread points cast their rays
+    /// ([`ReceiverNode::spread_point`](super::source::ReceiverNode::spread_point)), computed when
+    /// a link to the node first asks for them; empty for a native root.
+    pub(super) spread_points: Vec<SpreadPoints>,
     /// The shadow-ray verdicts of the near links this root received in indirect shots, kept for
     /// its shooters' next shots ([`super::near_verdicts`]); emptied when the solve ends.
     pub(super) near_verdicts: NearVerdicts,
@@ -78,6 +85,7 @@ impl Hierarchy {
             touched: false,
             covers: Vec::new(),
             reflectance: Vec::new(),
+            spread_points: Vec::new(),
             near_verdicts: NearVerdicts::default(),
         }
     }
@@ -112,12 +120,16 @@ impl Hierarchy {
     ) {
         self.covers.clear();
         self.reflectance.clear();
+        self.spread_points.clear();
         self.extend_side_tables(root, basis, cover_rules);
     }
 
     /// Gives the nodes that have none their cover and reflectance.
     fn extend_side_tables(&mut self, root: &ElementRoot, basis: &Basis, cover_rules: &CoverRules) {
         cover::extend(self, root, cover_rules, basis);
+        let covers = self.covers.len();
+        self.spread_points
+            .resize_with(covers, SpreadPoints::default);
         node_reflectance::extend(self, root);
         self.debug_assert_side_tables(root);
     }
@@ -154,7 +166,14 @@ impl Hierarchy {
             + self.nodes.capacity() * size_of::<Node>()
             + coefficients * size_of::<Rgb>()
             + self.covers.capacity() * size_of::<NodeCover>()
-            + self.reflectance.capacity() * size_of::<NodeReflectance>()) as u64
+            + self.reflectance.capacity() * size_of::<NodeReflectance>()
+            + self.spread_points.capacity() * size_of::<SpreadPoints>()
+            + self
+                .spread_points
+                .iter()
+                .filter_map(|p| p.get())
+                .map(|p| p.len() * size_of::<DVec2>())
+                .sum::<usize>()) as u64
     }
 
     pub fn leaf_count(&self) -> usize {

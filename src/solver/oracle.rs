@@ -14,10 +14,9 @@
 //! threshold; `Capped` only when neither side may be split.
 
 use super::basis::MAX_FUNCTIONS;
-use super::element::visibility_point;
 use super::quadrature;
 use super::refine::ShotContext;
-use super::rules::{corner_probe_points, CORNER_INSET};
+use super::rules::corner_probe_points;
 use super::source::{Rays, ReceiverNode, Source};
 use super::transfer::Received;
 use super::{Quantity, MAX_DEPTH};
@@ -163,9 +162,8 @@ fn verdict_rays_disagree(
     // gap (a window reveal under a sky, a box's side behind a parapet) is lit through a strip
     // that the rule's points and the corners all miss.
     (0..source.spread_rays()).any(|i| {
-        let [a, b, c, d] = quadrature::kronecker4(i);
-        let rs = quadrature::inset_into(root.shape, DVec2::new(a, b), CORNER_INSET);
-        let x = visibility_point(root, &receiver.map, rs);
+        let [_, _, c, d] = quadrature::kronecker4(i);
+        let x = receiver.spread_point(i);
         let mut disagrees = |y| ctx.visibility.visible(x, y, ignore) != quadrature_visible;
         source.spread_ray(x, n, DVec2::new(c, d), &mut disagrees)
     })

@@ -402,6 +402,7 @@ mod tests {
                     cover: Some(cover),
                     alike: &cover.alike,
                     reflectance_deviation: None,
+                    spread_points: None,
                 };
                 receive_counting(source, &node, visibility, Rays::Trace)
             };
