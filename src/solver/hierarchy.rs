@@ -143,6 +143,11 @@ impl Hierarchy {
             "one cover per node of an extended root, none for a native one"
         );
         debug_assert_eq!(
+            self.spread_points.len(),
+            self.covers.len(),
+            "spread points kept beside each cover"
+        );
+        debug_assert_eq!(
             self.reflectance.len(),
             per_node(root.reflectance.is_some()),
             "one reflectance per node of a root whose reflectance varies"
