@@ -1,7 +1,8 @@
 //! The world geometry of one element of a root: its [`Patch`] (origin, edges, area), the points
 //! that receive and cast rays for it (`visibility_point`, `receiving_point`: off an extended face,
 //! the closest point on the face), and the [`Emitter`] whose exact form factor it has (its own
-//! polygon, or the face inside a partly covered element, as world rings).
+//! polygon, or the face inside a partly covered element, as world rings) and a bound on it that
+//! needs no contour integral ([`FormFactorBound`]).
 //!
 //! Invariant: an extended root's points always receive and see through their stand-ins on the
 //! face (`V'(Q,P) = V(Q,P')`), in visibility and kernel alike, so the extension is continuous
@@ -280,7 +281,7 @@ pub(super) mod tests {
             }
             let map = ChildMap::IDENTITY;
             let patch = Patch::new(&root, &map);
-            // Every other case, a sliver of the patch as rings: its form factor is smaller.
+            // Every fourth case, a small triangle of the patch (a ninth of it) as rings.
             let rings = (case % 4 == 2).then(|| {
                 let ring = [
                     DVec2::new(0.1, 0.1),

@@ -385,6 +385,19 @@ impl<'s> ElementSource<'s> {
         terms
     }
 
+    /// The source's exchange with something seen from its emitting rule points, `form_factor(y)`
+    /// at each (m^2): the rule's weighted sum over the points, times the element's area.
+    fn exchange_from_rule(&self, form_factor: impl Fn(DVec3) -> f64) -> f64 {
+        let n = self.rule.len();
+        self.rule
+            .iter()
+            .zip(self.ys[..n].iter().zip(&self.alpha[..n]))
+            .filter(|(_, (_, &a))| a > 0.0)
+            .map(|(q, (&y, &a))| q.weight * a * form_factor(y))
+            .sum::<f64>()
+            * self.patch.area
+    }
+
     /// Rule point `l`'s term of the form factor at `x` (normal `n`): the kernel times the
     /// element's area, the point's weight `w` and its emission weight. One expression for
     /// [`ElementSource::rule_form_factor`] and [`ElementSource::with_verdicts`], so their sums
@@ -723,31 +736,18 @@ impl Source for ElementSource<'_> {
             // its neighbours on the face check.
             return None;
         }
-        let n = self.rule.len();
         // The exact exchange is asked only when a bound on it could reach ten times the
         // receiver's (a sky piece far above a small receiver is decided here).
         let bound = FormFactorBound::new(r.root, &r.patch);
-        let source_bound: f64 = self
-            .rule
-            .iter()
-            .zip(self.ys[..n].iter().zip(&self.alpha[..n]))
-            .filter(|(_, (_, &a))| a > 0.0)
-            .map(|(q, (&y, &a))| q.weight * a * bound.at(y, self.root.normal))
-            .sum::<f64>()
-            * self.patch.area;
+        let source_bound = self.exchange_from_rule(|y| bound.at(y, self.root.normal));
+        // (The margin is for rounding: the bound is a true upper bound of the exact value, which
+        // the contour integrals give to about 1e-12; `FormFactorBound`'s test allows 1e-9.)
         if seen_by_receiver >= MISSED_EXCHANGE_RATIO * source_bound * (1.0 + 1e-6) {
             return None;
         }
         let rings = partial_face_rings(r.root, &r.map, r.cover);
         let receiver = Emitter::new(r.root, &r.patch, rings.as_ref());
-        let seen_by_source: f64 = self
-            .rule
-            .iter()
-            .zip(self.ys[..n].iter().zip(&self.alpha[..n]))
-            .filter(|(_, (_, &a))| a > 0.0)
-            .map(|(q, (&y, &a))| q.weight * a * receiver.form_factor(y, self.root.normal))
-            .sum::<f64>()
-            * self.patch.area;
+        let seen_by_source = self.exchange_from_rule(|y| receiver.form_factor(y, self.root.normal));
         (seen_by_receiver < MISSED_EXCHANGE_RATIO * seen_by_source)
             .then(|| (seen_by_source - seen_by_receiver) * self.strength / r.patch.area)
     }

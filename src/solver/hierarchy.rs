@@ -1,7 +1,8 @@
 //! The element hierarchy of one root: a 4-ary tree of sub-elements stored in an arena, with
 //! per-node coefficient arrays (per colour channel) for irradiance and unshot radiosity.
 //!
-//! Also owns the per-node side tables: one `NodeCover` per node for an extended root, one
+//! Also owns the per-node side tables: one `NodeCover` and one `SpreadPoints` (filled when a
+//! link first asks, emptied when the solve ends) per node for an extended root, one
 //! `NodeReflectance` per node for a root whose reflectance varies, none otherwise. Only
 //! [`Hierarchy::of_root`], [`Hierarchy::split_element`] and [`Hierarchy::rebuild_side_tables`]
 //! create nodes for the solver, and each keeps the tables in step (`debug_assert_side_tables`).
@@ -62,7 +63,8 @@ pub struct Hierarchy {
     pub reflectance: Vec<NodeReflectance>,
     /// Extended roots only: per node, where its spread points cast their rays
     /// ([`ReceiverNode::spread_point`](super::source::ReceiverNode::spread_point)), computed when
-    /// a link to the node first asks for them; empty for a native root.
+    /// a link to the node first asks for them and emptied when the solve ends; empty for a
+    /// native root.
     pub(super) spread_points: Vec<SpreadPoints>,
     /// The shadow-ray verdicts of the near links this root received in indirect shots, kept for
     /// its shooters' next shots ([`super::near_verdicts`]); emptied when the solve ends.
@@ -124,7 +126,7 @@ impl Hierarchy {
         self.extend_side_tables(root, basis, cover_rules);
     }
 
-    /// Gives the nodes that have none their cover and reflectance.
+    /// Gives the nodes that have none their cover, spread points' cell and reflectance.
     fn extend_side_tables(&mut self, root: &ElementRoot, basis: &Basis, cover_rules: &CoverRules) {
         cover::extend(self, root, cover_rules, basis);
         let covers = self.covers.len();
@@ -159,8 +161,9 @@ impl Hierarchy {
     }
 
     /// The bytes this hierarchy holds, as allocated: the struct, its node entries, the four
-    /// coefficient arrays and the side tables (`SolveStats::bytes_per_element`). Grows with the
-    /// nodes alone (`bytes_grow_with_the_nodes`).
+    /// coefficient arrays and the side tables (`SolveStats::bytes_per_element`, taken after
+    /// [`Hierarchy::forget_solve_caches`]). Grows with the nodes alone there
+    /// (`bytes_grow_with_the_nodes`); during a solve, also with the spread points asked.
     pub fn bytes(&self) -> u64 {
         use std::mem::size_of;
         let coefficients = [&self.h, &self.hd, &self.u, &self.dh]
@@ -179,6 +182,15 @@ impl Hierarchy {
                 .filter_map(|p| p.get())
                 .map(|p| p.len() * size_of::<DVec2>())
                 .sum::<usize>()) as u64
+    }
+
+    /// Empties what the solve kept only to save work (the near links' verdicts, the spread
+    /// points): called when the solve ends.
+    pub(super) fn forget_solve_caches(&mut self) {
+        self.near_verdicts.clear();
+        for points in &mut self.spread_points {
+            points.take();
+        }
     }
 
     pub fn leaf_count(&self) -> usize {

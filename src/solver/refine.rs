@@ -177,7 +177,8 @@ impl ShotContext<'_> {
 
     /// What `part` delivers to receiver node `b` through `link` (the costly part: rays and form
     /// factors), and with `judge` the oracle's verdict on the node as it is; `None` when it
-    /// sends nothing (or the solve was cancelled). Reads the receiver only.
+    /// sends nothing (or the solve was cancelled). Reads the receiver only (but for the cache of
+    /// its spread points' stand-ins, `ReceiverNode::spread_point`).
     #[allow(clippy::too_many_arguments)]
     fn evaluate<S: Shot>(
         &self,
@@ -375,7 +376,7 @@ impl ShotContext<'_> {
     }
 
     /// The first of node `b`'s four children, splitting `b` first if it is a leaf (the new
-    /// children get their side tables: covers, reflectance).
+    /// children get their side tables: covers, spread points' cells, reflectance).
     pub fn first_child(&self, rcv: &mut Hierarchy, b: usize, root: &ElementRoot) -> usize {
         if rcv.nodes[b].is_leaf() {
             rcv.split_element(b, root, self.bases.of(root.shape), &self.rules.cover)

@@ -217,7 +217,7 @@ pub fn solve(
     tracing::debug!(bytes = far_verdicts.bytes(), "far links' verdicts kept");
     tracing::debug!(bytes = near_verdicts.used(), "near links' verdicts kept");
     for h in &mut hierarchies {
-        h.near_verdicts.clear();
+        h.forget_solve_caches();
     }
     let last = *convergence.last().expect("at least one progress row");
     let stats = SolveStats {

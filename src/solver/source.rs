@@ -6,7 +6,8 @@
 //! points missed of it (reciprocity) and how it splits; the transfer (`transfer.rs`) and the
 //! oracle (`oracle.rs`) know nothing else of it.
 //!
-//! Also owns [`ReceiverNode`], the receiving side of one interaction.
+//! Also owns [`ReceiverNode`], the receiving side of one interaction, and where the spread rays
+//! that check a verdict start and end ([`SPREAD_RAYS`], [`spread_st`]).
 //!
 //! Invariant: a source's point answers and its shadow rays cast exactly the rays its transfer
 //! needs, in a fixed order (the ray count is part of the solve's statistics).

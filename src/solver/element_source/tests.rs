@@ -101,19 +101,23 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
     assert!((r - 1.0).abs() < 1e-12, "{r}");
 }
 
-/// `rule_sums` is `rule_form_factor` and `with_verdicts` with every point seen, bit for bit: random
-/// radiosity (every basis function) on a holed, partly covered source and on a whole one, at
-/// random points and normals, in front of the source or not.
-#[test]
-fn the_rule_sums_are_with_verdicts_all_seen() {
+/// Random sources seen from random points, for the bit-for-bit checks below: `count` random
+/// radiosities (every basis function) on a whole unit square, then on a holed, partly covered
+/// one, each seen from a random point within 10 units of the square's centre (in front of it or
+/// not) with a random normal. `check` gets whether the source is holed, the source, the point,
+/// the normal and the random sequence.
+fn for_random_sources_and_points(
+    seed: u64,
+    count: usize,
+    mut check: impl FnMut(bool, &ElementSource, DVec3, DVec3, &mut dyn FnMut() -> f64),
+) {
     let order = 2;
     let (bases, rules) = (Bases::new(order), Rules::new(order));
     let basis = Basis::new(Shape::Parallelogram, order);
     let n = basis.len();
-    let mut rnd = crate::shuffle::uniform_sequence(5);
+    let mut rnd = crate::shuffle::uniform_sequence(seed);
     let visibility = Visibility::new(Vec::new(), 30.0);
     let hierarchy = Hierarchy::new(n);
-    let mut checked = 0;
     for holed in [false, true] {
         let (root, cover) = if holed {
             let (root, cover) = holed_unit_square(&rules, &basis);
@@ -122,7 +126,7 @@ fn the_rule_sums_are_with_verdicts_all_seen() {
             (parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y), None)
         };
         let roots = [root];
-        for _ in 0..200 {
+        for _ in 0..count {
             let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
             for c in coeffs.iter_mut().take(n) {
                 *c = [rnd() - 0.3, rnd(), 2.0 * rnd() - 1.0];
@@ -135,16 +139,26 @@ fn the_rule_sums_are_with_verdicts_all_seen() {
             let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
             let x = DVec3::new(0.5, 0.5, 0.0) + v() * 20.0;
             let normal = v().normalize();
-            let (f, e) = source.rule_sums(x, normal);
-            assert_eq!(f, source.rule_form_factor(x, normal));
-            if f > 0.0 {
-                assert_eq!(e, source.with_verdicts(x, normal, f, u64::MAX, None).e);
-                checked += 1;
-            } else {
-                assert_eq!(e, [0.0; 3]);
-            }
+            check(holed, &source, x, normal, &mut rnd);
         }
     }
+}
+
+/// `rule_sums` is `rule_form_factor` and `with_verdicts` with every point seen, bit for bit, on
+/// [`for_random_sources_and_points`].
+#[test]
+fn the_rule_sums_are_with_verdicts_all_seen() {
+    let mut checked = 0;
+    for_random_sources_and_points(5, 200, |_, source, x, normal, _| {
+        let (f, e) = source.rule_sums(x, normal);
+        assert_eq!(f, source.rule_form_factor(x, normal));
+        if f > 0.0 {
+            assert_eq!(e, source.with_verdicts(x, normal, f, u64::MAX, None).e);
+            checked += 1;
+        } else {
+            assert_eq!(e, [0.0; 3]);
+        }
+    });
     assert!(checked > 100, "{checked} points received light");
 }
 
@@ -307,61 +321,32 @@ fn a_varying_source_cut_diagonally_is_sampled_in_front_of_the_plane() {
 }
 
 /// Where the form factor is the rule's sum, the terms it summed give `with_verdicts` what it
-/// computes on its own, bit for bit, whatever the verdicts: random radiosity, points, normals
-/// and verdicts on a whole source and on a holed, partly covered one (whose form factor is
-/// always the contour integral's: no terms).
+/// computes on its own, bit for bit, whatever the verdicts, on [`for_random_sources_and_points`]
+/// with random verdicts (the holed source's form factor is always the contour integral's: no
+/// terms).
 #[test]
 fn the_form_factors_terms_give_with_verdicts_its_own() {
-    let order = 2;
-    let (bases, rules) = (Bases::new(order), Rules::new(order));
-    let basis = Basis::new(Shape::Parallelogram, order);
-    let n = basis.len();
-    let mut rnd = crate::shuffle::uniform_sequence(11);
-    let visibility = Visibility::new(Vec::new(), 30.0);
-    let hierarchy = Hierarchy::new(n);
     let mut with_terms = 0;
-    for holed in [false, true] {
-        let (root, cover) = if holed {
-            let (root, cover) = holed_unit_square(&rules, &basis);
-            (root, Some(cover))
-        } else {
-            (parallelogram_root(DVec3::ZERO, DVec3::X, DVec3::Y), None)
-        };
-        let roots = [root];
-        for _ in 0..300 {
-            let mut coeffs = [[0.0; 3]; MAX_FUNCTIONS];
-            for c in coeffs.iter_mut().take(n) {
-                *c = [rnd() - 0.3, rnd(), 2.0 * rnd() - 1.0];
-            }
-            let element = SourceElement::root(&roots[0], coeffs, n, cover, None);
-            let shot = shot_of_first_root(&roots, (&bases, &rules), &visibility, &hierarchy, false);
-            let Some(source) = shot.source(&element, [1.0; 3]) else {
-                continue;
-            };
-            let mut v = || DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
-            let x = DVec3::new(0.5, 0.5, 0.0) + v() * 20.0;
-            let normal = v().normalize();
-            let (f, terms) = source.form_factor_and_terms(x, normal);
-            assert_eq!(f.to_bits(), source.form_factor(x, normal).to_bits());
-            let Some(terms) = terms else { continue };
-            assert!(
-                !holed,
-                "a partly covered source's form factor is the contour integral's"
-            );
-            assert_eq!(f.to_bits(), source.rule_form_factor(x, normal).to_bits());
-            if f <= 0.0 {
-                continue;
-            }
-            let seen = (rnd() * 512.0) as u64;
-            assert_eq!(
-                format!(
-                    "{:?}",
-                    source.with_verdicts(x, normal, f, seen, Some(&terms))
-                ),
-                format!("{:?}", source.with_verdicts(x, normal, f, seen, None)),
-            );
-            with_terms += 1;
+    for_random_sources_and_points(11, 400, |holed, source, x, normal, rnd| {
+        let (f, terms) = source.form_factor_and_terms(x, normal);
+        let Some(terms) = terms else { return };
+        assert!(
+            !holed,
+            "a partly covered source's form factor is the contour integral's"
+        );
+        assert_eq!(f.to_bits(), source.rule_form_factor(x, normal).to_bits());
+        if f <= 0.0 {
+            return;
         }
-    }
+        let seen = (rnd() * 512.0) as u64;
+        assert_eq!(
+            format!(
+                "{:?}",
+                source.with_verdicts(x, normal, f, seen, Some(&terms))
+            ),
+            format!("{:?}", source.with_verdicts(x, normal, f, seen, None)),
+        );
+        with_terms += 1;
+    });
     assert!(with_terms > 50, "{with_terms} points took the rule's terms");
 }
