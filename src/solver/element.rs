@@ -281,7 +281,7 @@ pub(super) mod tests {
             }
             let map = ChildMap::IDENTITY;
             let patch = Patch::new(&root, &map);
-            // Every fourth case, a small triangle of the patch (a ninth of it) as rings.
+            // Every fourth case, a small triangle of the patch (9 % of it) as rings.
             let rings = (case % 4 == 2).then(|| {
                 let ring = [
                     DVec2::new(0.1, 0.1),

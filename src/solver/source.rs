@@ -391,6 +391,12 @@ mod tests {
                 );
             }
             assert_eq!(moved > 0, extended, "{moved} points stand in off the face");
+            // Emptied when the solve ends: the bytes are the nodes' again.
+            let asked = h.bytes();
+            h.forget_solve_caches();
+            assert!(h.spread_points.iter().all(|p| p.get().is_none()));
+            let kept = h.nodes.len() * SPREAD_RAYS * std::mem::size_of::<DVec2>();
+            assert_eq!(asked - h.bytes(), if extended { kept as u64 } else { 0 });
         }
     }
 }

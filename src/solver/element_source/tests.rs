@@ -103,8 +103,8 @@ fn a_far_link_on_a_partly_covered_source_takes_the_rule_beyond_its_radii() {
 
 /// Random sources seen from random points, for the bit-for-bit checks below: `count` random
 /// radiosities (every basis function) on a whole unit square, then on a holed, partly covered
-/// one, each seen from a random point within 10 units of the square's centre (in front of it or
-/// not) with a random normal. `check` gets whether the source is holed, the source, the point,
+/// one, each seen from a random point within 10 units of the square's centre on each axis (in
+/// front of it or not) with a random normal. `check` gets whether the source is holed, the source, the point,
 /// the normal and the random sequence.
 fn for_random_sources_and_points(
     seed: u64,
