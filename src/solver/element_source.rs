@@ -7,9 +7,9 @@
 //! head-on value, `kernel::rule_suffices_radii`, to that sum; a far link takes the sum there on a
 //! partly covered element too), and the reciprocity check. Where a receiver point's tangent
 //! plane cuts a native or wholly covered element behind some of its rule points, the rule is
-//! carried onto the part in front ([`FrontMap`]), so the rays sample what the form factor
-//! counts (on every path but a far link's one ray). The one-ray path, a far link's and the
-//! centre ray's: `far_link.rs`.
+//! carried onto the part in front (`front_rule.rs`, by `FrontMap`), so the rays sample what the
+//! form factor counts (on every path but a far link's one ray). The one-ray path, a far link's
+//! and the centre ray's: `far_link.rs`.
 //!
 //! Invariants: a partly covered element emits its exact mean over the face inside it
 //! (`face_mean`); an empty one emits nothing; the shooter is read-only during its shot.
@@ -19,7 +19,6 @@ use super::cover::{NodeCover, MAX_RULE_POINTS};
 use super::element::{
     partial_face_rings, visibility_point, world_rings, Emitter, FaceRings, FormFactorBound, Patch,
 };
-use super::front_map::FrontMap;
 use super::hierarchy::Hierarchy;
 use super::kernel;
 use super::near_verdicts::ALL_VISIBLE;
@@ -362,15 +361,20 @@ impl<'s> ElementSource<'s> {
             .rule_suffices(x, n, self.shot.rules.form_factor_radii)
         {
             let terms = self.point_terms(x, n);
-            let f = terms[..self.rule.len()]
-                .iter()
-                .filter(|&&kxy| kxy > 0.0)
-                .fold(0.0, |sum, &kxy| sum + kxy);
-            debug_assert_eq!(f.to_bits(), self.rule_form_factor(x, n).to_bits());
-            (f, Some(terms))
+            (self.sum_of_front(&terms), Some(terms))
         } else {
             (self.emitter.form_factor(x, n), None)
         }
+    }
+
+    /// The rule's form factor from its points' terms ([`ElementSource::point_terms`]): the
+    /// positive ones (the emitting points in front) summed in the rule's order, the sum
+    /// [`ElementSource::with_verdicts`] rescales by.
+    fn sum_of_front(&self, terms: &[f64; POINTS]) -> f64 {
+        terms[..self.rule.len()]
+            .iter()
+            .filter(|&&kxy| kxy > 0.0)
+            .fold(0.0, |sum, &kxy| sum + kxy)
     }
 
     /// Each rule point's [`ElementSource::point_term`] at `x` (normal `n`); 0 where the point
@@ -399,9 +403,9 @@ impl<'s> ElementSource<'s> {
     }
 
     /// Rule point `l`'s term of the form factor at `x` (normal `n`): the kernel times the
-    /// element's area, the point's weight `w` and its emission weight. One expression for
-    /// [`ElementSource::rule_form_factor`] and [`ElementSource::with_verdicts`], so their sums
-    /// agree bit for bit.
+    /// element's area, the point's weight `w` and its emission weight. One expression for the
+    /// rule's form factor ([`ElementSource::point_terms`]), `rule_sums` and
+    /// [`ElementSource::with_verdicts`], so their sums agree bit for bit.
     fn point_term(&self, l: usize, w: f64, x: DVec3, n: DVec3) -> f64 {
         kernel::geometric_kernel(x, n, self.ys[l], self.root.normal)
             * self.patch.area
@@ -422,9 +426,11 @@ impl<'s> ElementSource<'s> {
     }
 
     /// The rule's sum of the kernel from `x` over the emitting points (the positive terms
-    /// [`ElementSource::with_verdicts`] sums).
+    /// [`ElementSource::with_verdicts`] sums), wherever `x` is: what
+    /// [`ElementSource::form_factor`] takes beyond the rule's radii.
+    #[cfg(test)]
     fn rule_form_factor(&self, x: DVec3, n: DVec3) -> f64 {
-        self.front_terms(x, n).fold(0.0, |sum, (_, kxy)| sum + kxy)
+        self.sum_of_front(&self.point_terms(x, n))
     }
 
     /// What the source delivers at `x` (normal `n`, unoccluded form factor `f > 0` from
@@ -439,13 +445,8 @@ impl<'s> ElementSource<'s> {
         mut seen: u64,
         terms: Option<&[f64; POINTS]>,
     ) -> PointIrradiance {
-        let unoccluded = f * self.strength;
-        let mut out = PointIrradiance {
-            unoccluded,
-            form_factor: f,
-            seen,
-            ..PointIrradiance::default()
-        };
+        let mut out = self.unread_answer(f, seen);
+        let unoccluded = out.unoccluded;
         let alpha = &self.alpha;
         let mut fq = 0.0;
         let mut e = [0.0; 3];
@@ -510,59 +511,15 @@ impl<'s> ElementSource<'s> {
         out
     }
 
-    /// The rule carried onto the part of the element in front of receiver point `x`'s plane
-    /// (normal `n`), when some emitting rule point lies behind it: the rule's points there
-    /// exchange no light, and those in front sample the front part unevenly (under an eave, a
-    /// sky element cut by the wall's plane kept one column of points far from the wall, all of
-    /// them seen past the eave, while its front part nearest the wall, which the eave hides,
-    /// had no point). Native elements and wholly covered ones of an extended root (a partly
-    /// covered element's points are tied to the face inside it). `None` when no emitting point
-    /// lies behind. The map, and the test that pins it as a quadrature of the front part:
-    /// `front_map.rs`.
-    fn front_rule(&self, x: DVec3, n: DVec3) -> Option<FrontRule> {
-        if self.partial
-            || self
-                .src
-                .cover
-                .is_some_and(|c| c.status != ElementStatus::Full)
-        {
-            return None;
+    /// A point's answer before its verdicts are read into it: the unoccluded irradiance of form
+    /// factor `f` and the verdicts `seen` (`with_verdicts` and `front_irradiance` fill the rest).
+    fn unread_answer(&self, f: f64, seen: u64) -> PointIrradiance {
+        PointIrradiance {
+            unoccluded: f * self.strength,
+            form_factor: f,
+            seen,
+            ..PointIrradiance::default()
         }
-        let behind =
-            (0..self.rule.len()).any(|l| self.alpha[l] > 0.0 && (self.ys[l] - x).dot(n) <= 0.0);
-        if !behind {
-            return None;
-        }
-        let h0 = (self.patch.origin - x).dot(n);
-        let map = FrontMap::new(
-            self.root.shape,
-            h0,
-            self.patch.u.dot(n),
-            self.patch.v.dot(n),
-        )?;
-        let basis = self.shot.bases.of(self.root.shape);
-        let ns = basis.len();
-        let mut rule = FrontRule {
-            points: [DVec3::ZERO; POINTS],
-            weights: [0.0; POINTS],
-            radiosity: [[0.0; 3]; POINTS],
-            len: 0,
-        };
-        let mut phi = [0.0; MAX_FUNCTIONS];
-        for q in self.rule {
-            let (st, jacobian) = map.apply(q.st);
-            let i = rule.len;
-            rule.points[i] = self.patch.point(st);
-            rule.weights[i] = q.weight * jacobian;
-            basis.eval(st, &mut phi);
-            for bfn in 0..ns {
-                for ch in 0..3 {
-                    rule.radiosity[i][ch] += phi[bfn] * self.src.coeffs[bfn][ch];
-                }
-            }
-            rule.len += 1;
-        }
-        Some(rule)
     }
 
     /// The packet of shadow rays from `x` to the rule's points that emit, in the rule's order
@@ -579,75 +536,6 @@ impl<'s> ElementSource<'s> {
             rays += 1;
         }
         trace_packet(self.shot.visibility, x, &targets[..rays], ignore)
-    }
-
-    /// What the source delivers at `x` (normal `n`, exact form factor `f`) sampled by the
-    /// `front` rule, its shadow rays decided as `rays` says (one per point; every point seen; or
-    /// one ray, to the front part's centroid, for all of them) unless `known` (an earlier
-    /// shot's, [`PointIrradiance::seen`]): the visible points' kernel-weighted radiosity scaled
-    /// to `f`, and the flags and the sampling error as [`ElementSource::with_verdicts`] gives
-    /// them with the element's own rule. `None` when no front point exchanges light (a sliver
-    /// of front part at grazing angles).
-    fn front_irradiance(
-        &self,
-        (x, n, f): (DVec3, DVec3, f64),
-        ignore: [u32; 2],
-        front: &FrontRule,
-        (rays, known): (Rays, Option<u64>),
-    ) -> Option<PointIrradiance> {
-        let k = front.len;
-        let mut terms = [0.0; POINTS];
-        let mut fq = 0.0;
-        for i in 0..k {
-            terms[i] = kernel::geometric_kernel(x, n, front.points[i], self.root.normal)
-                * self.patch.area
-                * front.weights[i];
-            fq += terms[i];
-        }
-        if fq <= 0.0 {
-            return None;
-        }
-        let visibility = self.shot.visibility;
-        let seen = verdicts(
-            (rays, known),
-            || trace_packet(visibility, x, &front.points[..k], ignore),
-            || {
-                let w: f64 = front.weights[..k].iter().sum();
-                let centroid = (0..k)
-                    .map(|i| front.points[i] * front.weights[i])
-                    .sum::<DVec3>()
-                    / w;
-                trace_packet(visibility, x, &[centroid], ignore)
-            },
-        );
-        let unoccluded = f * self.strength;
-        let mut out = PointIrradiance {
-            unoccluded,
-            form_factor: f,
-            seen,
-            ..PointIrradiance::default()
-        };
-        let mut e = [0.0; 3];
-        let (mut front_weight, mut front_visible) = (0.0, 0.0);
-        for i in 0..k {
-            if terms[i] <= 0.0 {
-                continue;
-            }
-            front_weight += front.weights[i];
-            if seen >> i & 1 == 1 {
-                out.any_visible = true;
-                front_visible += front.weights[i];
-                for ch in 0..3 {
-                    e[ch] += terms[i] * front.radiosity[i][ch];
-                }
-            } else {
-                out.any_blocked = true;
-            }
-        }
-        let v = front_visible / front_weight;
-        out.source_side_err = unoccluded * 2.0 * v.min(1.0 - v).max(0.0);
-        out.e = e.map(|c| c * f / fq);
-        Some(out)
     }
 }
 
@@ -798,17 +686,8 @@ fn trace_packet(visibility: &Visibility, x: DVec3, targets: &[DVec3], ignore: [u
     }
 }
 
-/// An element's rule carried onto its part in front of a receiver point's plane
-/// ([`ElementSource::front_rule`]): the points, their weights (the rule's times the map's
-/// Jacobian, summing to the front part's share of the element) and the radiosity there.
-struct FrontRule {
-    points: [DVec3; POINTS],
-    weights: [f64; POINTS],
-    radiosity: [Rgb; POINTS],
-    len: usize,
-}
-
 mod far_link;
+mod front_rule;
 
 #[cfg(test)]
 pub(super) mod tests;
